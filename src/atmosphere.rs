@@ -1,0 +1,1 @@
+//! atmosphere (in progress)

@@ -1,0 +1,101 @@
+//! The library's typed error. Every message names what was wrong (file, field, value) and
+//! what would be valid, so the CLI can print it as one line.
+
+use std::path::PathBuf;
+
+/// Result alias used throughout eoir.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Everything that can go wrong in eoir, with enough context to fix it.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A configuration or function parameter outside its valid range.
+    #[error("invalid parameter `{field}` = {value}: {expected}")]
+    InvalidParameter {
+        /// Name of the field or argument (dotted path for configuration keys).
+        field: String,
+        /// The offending value, as written.
+        value: String,
+        /// What would be valid.
+        expected: String,
+    },
+    /// A file could not be read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file concerned.
+        path: PathBuf,
+        /// The underlying I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A file was read but its content is malformed or inconsistent.
+    #[error("{}: {message}", path.display())]
+    Format {
+        /// The file concerned.
+        path: PathBuf,
+        /// What is wrong and where (line, field, value).
+        message: String,
+    },
+    /// A numerical inversion or evaluation that has no valid answer (e.g. a signal outside
+    /// the range a temperature lookup covers).
+    #[error("{0}")]
+    OutOfRange(String),
+}
+
+impl Error {
+    /// Shorthand for [`Error::InvalidParameter`].
+    pub fn param(
+        field: impl Into<String>,
+        value: impl std::fmt::Display,
+        expected: impl Into<String>,
+    ) -> Self {
+        Error::InvalidParameter {
+            field: field.into(),
+            value: value.to_string(),
+            expected: expected.into(),
+        }
+    }
+
+    /// Shorthand for [`Error::Io`].
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+
+    /// Shorthand for [`Error::Format`].
+    pub fn format(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        Error::Format {
+            path: path.into(),
+            message: message.into(),
+        }
+    }
+}
+
+/// Checks that `value` is finite and strictly positive, naming `field` otherwise.
+pub fn require_positive(field: &str, value: f64) -> Result<f64> {
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err(Error::param(field, value, "a finite number > 0"))
+    }
+}
+
+/// Checks that `value` is finite and ≥ 0, naming `field` otherwise.
+pub fn require_non_negative(field: &str, value: f64) -> Result<f64> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(value)
+    } else {
+        Err(Error::param(field, value, "a finite number >= 0"))
+    }
+}
+
+/// Checks that `value` lies in the closed interval [lo, hi], naming `field` otherwise.
+pub fn require_in_range(field: &str, value: f64, lo: f64, hi: f64) -> Result<f64> {
+    if value.is_finite() && value >= lo && value <= hi {
+        Ok(value)
+    } else {
+        Err(Error::param(field, value, format!("a number in [{lo}, {hi}]")))
+    }
+}

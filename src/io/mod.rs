@@ -1,0 +1,188 @@
+//! Reading radiance cubes and writing products, one module per file format.
+//!
+//! The format is chosen from the file extension:
+//!
+//! | extension | format | module |
+//! |---|---|---|
+//! | `.hdr` (or the data file next to it) | ENVI header + binary | [`envi`] |
+//! | `.exr` | spectral OpenEXR (Fichet et al. 2021 layout) | [`exr`] |
+//! | `.npy` | NumPy array + `.json` sidecar | [`npy`] |
+//! | `.h5`, `.hdf5` | HDF5 (cargo feature `hdf5`) | `hdf5` |
+//!
+//! Readers implement [`CubeReader`], which hands out one band plane at a time so that a
+//! caller that streams (the imaging engine) needs memory for one band, not the whole
+//! cube, where the format allows it. Every plane is checked for NaN, ±Inf and negative
+//! radiance as it is read. Writers go through [`atomic_write`], so a failure never leaves
+//! a half-written file behind.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use ndarray::{Array2, Array3};
+
+use crate::error::{Error, Result};
+use crate::scene::{Cube, CubeMeta};
+
+pub mod envi;
+pub mod exr;
+#[cfg(feature = "hdf5")]
+pub mod hdf5;
+pub mod npy;
+pub mod raster;
+
+/// A source of radiance planes: one or more frames of a cube with shared metadata.
+pub trait CubeReader {
+    /// Wavelengths, units, size and geometry.
+    fn meta(&self) -> &CubeMeta;
+    /// Number of frames (1 for a single cube).
+    fn frames(&self) -> usize {
+        1
+    }
+    /// Time between frames, s, if the source says.
+    fn frame_time_s(&self) -> Option<f64> {
+        None
+    }
+    /// Reads band `band` of frame `frame` as `[row, col]`, in the cube's units, after
+    /// checking every value is finite and non-negative.
+    fn read_band(&mut self, frame: usize, band: usize) -> Result<Array2<f32>>;
+}
+
+/// The file formats eoir reads and writes cubes in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CubeFormat {
+    /// ENVI `.hdr` + raw binary.
+    Envi,
+    /// Spectral OpenEXR.
+    Exr,
+    /// NumPy `.npy` + `.json` sidecar.
+    Npy,
+    /// HDF5 (cargo feature `hdf5`).
+    Hdf5,
+}
+
+impl CubeFormat {
+    /// Picks the format from a path's extension.
+    pub fn from_path(path: &Path) -> Result<Self> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase())
+            .unwrap_or_default();
+        match ext.as_str() {
+            "hdr" | "img" | "bsq" | "bil" | "bip" | "raw" | "dat" => Ok(CubeFormat::Envi),
+            "exr" => Ok(CubeFormat::Exr),
+            "npy" => Ok(CubeFormat::Npy),
+            "h5" | "hdf5" | "he5" => Ok(CubeFormat::Hdf5),
+            _ => Err(Error::format(
+                path,
+                format!(
+                    "unknown cube format (extension `.{ext}`); use .hdr (ENVI), .exr (spectral OpenEXR), .npy (NumPy + .json sidecar) or .h5 (HDF5)"
+                ),
+            )),
+        }
+    }
+}
+
+/// Opens a cube file for band-by-band reading; the format comes from the extension.
+pub fn open(path: &Path) -> Result<Box<dyn CubeReader>> {
+    match CubeFormat::from_path(path)? {
+        CubeFormat::Envi => Ok(Box::new(envi::EnviReader::open(path)?)),
+        CubeFormat::Exr => Ok(Box::new(exr::ExrReader::open(path)?)),
+        CubeFormat::Npy => Ok(Box::new(npy::NpyReader::open(path)?)),
+        #[cfg(feature = "hdf5")]
+        CubeFormat::Hdf5 => Ok(Box::new(hdf5::Hdf5Reader::open(path)?)),
+        #[cfg(not(feature = "hdf5"))]
+        CubeFormat::Hdf5 => Err(hdf5_missing(path)),
+    }
+}
+
+/// Reads frame `frame` of a cube file completely into memory.
+pub fn read_cube_frame(reader: &mut dyn CubeReader, frame: usize) -> Result<Cube> {
+    let meta = reader.meta().clone();
+    let mut data = Array3::<f32>::zeros((meta.bands(), meta.rows, meta.cols));
+    for b in 0..meta.bands() {
+        let plane = reader.read_band(frame, b)?;
+        data.index_axis_mut(ndarray::Axis(0), b).assign(&plane);
+    }
+    Cube::new(data, meta)
+}
+
+/// Reads the first (or only) frame of a cube file into memory.
+pub fn read_cube(path: &Path) -> Result<Cube> {
+    let mut r = open(path)?;
+    read_cube_frame(r.as_mut(), 0)
+}
+
+/// Writes a cube in the format given by the extension, atomically.
+pub fn write_cube(path: &Path, cube: &Cube) -> Result<()> {
+    match CubeFormat::from_path(path)? {
+        CubeFormat::Envi => envi::write(path, cube),
+        CubeFormat::Exr => exr::write(path, cube),
+        CubeFormat::Npy => npy::write(path, cube),
+        #[cfg(feature = "hdf5")]
+        CubeFormat::Hdf5 => hdf5::write(path, cube),
+        #[cfg(not(feature = "hdf5"))]
+        CubeFormat::Hdf5 => Err(hdf5_missing(path)),
+    }
+}
+
+#[cfg(not(feature = "hdf5"))]
+fn hdf5_missing(path: &Path) -> Error {
+    Error::format(
+        path,
+        "HDF5 support is not compiled in; rebuild with `cargo build --release --features hdf5` (needs libhdf5-dev)",
+    )
+}
+
+/// The temporary name a file is written under before it is renamed into place.
+fn temp_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.eoir-tmp-{}", std::process::id()))
+}
+
+/// Writes a file atomically: `write` fills a temporary file in the same directory, which
+/// is synced and renamed over `path` only if `write` succeeds; otherwise it is removed and
+/// `path` is untouched.
+pub fn atomic_write<F>(path: &Path, write: F) -> Result<()>
+where
+    F: FnOnce(&mut BufWriter<File>) -> Result<()>,
+{
+    let tmp = temp_path(path);
+    let result = (|| {
+        let file = File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
+        let mut w = BufWriter::new(file);
+        write(&mut w)?;
+        let file = w
+            .into_inner()
+            .map_err(|e| Error::io(&tmp, e.into_error()))?;
+        file.sync_all().map_err(|e| Error::io(&tmp, e))?;
+        std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// Like [`atomic_write`] for libraries that want a path rather than a writer: `write` is
+/// given the temporary path to create.
+pub fn atomic_write_path<F>(path: &Path, write: F) -> Result<()>
+where
+    F: FnOnce(&Path) -> Result<()>,
+{
+    let tmp = temp_path(path);
+    let result = write(&tmp).and_then(|_| std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)));
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// Writes all of `bytes` to `w`, mapping errors to `path`.
+pub fn write_all(w: &mut impl Write, bytes: &[u8], path: &Path) -> Result<()> {
+    w.write_all(bytes).map_err(|e| Error::io(path, e))
+}

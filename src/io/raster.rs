@@ -1,0 +1,1 @@
+//! Single-plane product writers (being written in a parallel branch).

@@ -1,0 +1,36 @@
+//! # eoir — electro-optical / infrared sensor model
+//!
+//! eoir turns the spectral radiance a scene generator computed for every pixel into the
+//! image a real camera records, and back into radiance and apparent temperature.
+//!
+//! The crate follows the flow of `DESIGN.md`: spectra and radiometry feed a spectral
+//! chain, transfer functions (optics, atmosphere, motion) form a cascade evaluated in
+//! angular frequency (cycles/rad), and the sensor description ties them together.
+//!
+//! Modules, in dependency order (a module uses only those above it):
+//! - [`constants`]: SI constants (2019 exact values).
+//! - [`error`]: the typed error every fallible function returns.
+//! - [`spectrum`]: spectral curves (filters, QE, transmissions) and integration weights.
+//! - [`radiometry`]: Planck's law, band integrals, the camera equation, apparent temperature.
+//! - [`optics`]: aperture, aberration, defocus, detector-footprint transfer functions.
+//! - [`motion`]: linear smear, jitter and global Gaussian transfer functions.
+//! - [`atmosphere`]: Fried parameter, turbulence and aerosol transfer functions.
+//! - [`sensor`]: the sensor configuration schema, validation and the system OTF cascade.
+//! - [`plot`]: PNG line plots with an embedded font (no system font libraries).
+//! - [`scene`]: the spectral radiance cube type and its geometry.
+//! - [`io`]: cube readers/writers (ENVI, spectral EXR, NPY, HDF5) and product writers.
+#![warn(missing_docs)]
+
+pub mod atmosphere;
+pub mod constants;
+pub mod error;
+pub mod io;
+pub mod motion;
+pub mod optics;
+pub mod plot;
+pub mod radiometry;
+pub mod scene;
+pub mod sensor;
+pub mod spectrum;
+
+pub use error::{Error, Result};

@@ -1,0 +1,1 @@
+//! motion (in progress)

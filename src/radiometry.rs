@@ -1,0 +1,1 @@
+//! radiometry (in progress)

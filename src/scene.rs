@@ -1,0 +1,195 @@
+//! The spectral radiance cube, its wavelength grid, units and viewing geometry.
+//!
+//! Arrays are band-major `[band, row, col]` (DESIGN.md §3). Angular geometry uses the
+//! paraxial convention of the sensor model: a cube with `cols` samples over a horizontal
+//! field of view `fov_x` samples the scene every `ifov_x = fov_x / cols` radians.
+
+use ndarray::Array3;
+
+use crate::error::{Error, Result};
+
+/// What the numbers in a cube mean.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RadianceUnits {
+    /// Spectral radiance, W m-2 sr-1 µm-1 (the default for scene generators).
+    SpectralPerUm,
+    /// Radiance already integrated over each band's bin, W m-2 sr-1 per bin.
+    BandIntegrated,
+}
+
+impl RadianceUnits {
+    /// The unit string eoir writes into file headers.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RadianceUnits::SpectralPerUm => "W m-2 sr-1 um-1",
+            RadianceUnits::BandIntegrated => "W m-2 sr-1",
+        }
+    }
+
+    /// Parses the unit strings eoir writes and their common spellings.
+    pub fn parse(s: &str) -> Option<Self> {
+        let t: String = s
+            .to_ascii_lowercase()
+            .replace('µ', "u")
+            .replace("μ", "u")
+            .chars()
+            .filter(|c| !c.is_whitespace() && *c != '^' && *c != '*' && *c != '.' && *c != '/')
+            .collect();
+        match t.as_str() {
+            "wm-2sr-1um-1" | "wm2srum" | "wm-2sr-1micron-1" | "spectral" | "spectralradiance" => {
+                Some(RadianceUnits::SpectralPerUm)
+            }
+            "wm-2sr-1" | "wm2sr" | "band" | "bandintegrated" => Some(RadianceUnits::BandIntegrated),
+            _ => None,
+        }
+    }
+}
+
+/// Where the cube looks: its angular extent and, optionally, the range to the scene.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Geometry {
+    /// Horizontal full field of view, degrees.
+    pub fov_x_deg: f64,
+    /// Vertical full field of view, degrees.
+    pub fov_y_deg: f64,
+    /// Range from the sensor to the scene, m (used for motion smear and path effects).
+    pub range_m: Option<f64>,
+}
+
+impl Geometry {
+    /// Geometry from per-pixel angular sampling (IFOV, rad) and the pixel counts.
+    pub fn from_ifov(ifov_x_rad: f64, ifov_y_rad: f64, rows: usize, cols: usize) -> Self {
+        Geometry {
+            fov_x_deg: (ifov_x_rad * cols as f64).to_degrees(),
+            fov_y_deg: (ifov_y_rad * rows as f64).to_degrees(),
+            range_m: None,
+        }
+    }
+
+    /// Horizontal sample spacing, rad per pixel, for a cube `cols` wide.
+    pub fn ifov_x_rad(&self, cols: usize) -> f64 {
+        self.fov_x_deg.to_radians() / cols as f64
+    }
+
+    /// Vertical sample spacing, rad per pixel, for a cube `rows` high.
+    pub fn ifov_y_rad(&self, rows: usize) -> f64 {
+        self.fov_y_deg.to_radians() / rows as f64
+    }
+}
+
+/// Everything about a cube except its pixel values.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CubeMeta {
+    /// Band centre wavelengths, µm, strictly increasing.
+    pub wavelength_um: Vec<f64>,
+    /// Band full widths at half maximum, µm, one per band, if the source gave them.
+    pub fwhm_um: Option<Vec<f64>>,
+    /// Units of the values.
+    pub units: RadianceUnits,
+    /// Field of view and range.
+    pub geometry: Geometry,
+    /// Number of rows.
+    pub rows: usize,
+    /// Number of columns.
+    pub cols: usize,
+}
+
+impl CubeMeta {
+    /// Number of bands.
+    pub fn bands(&self) -> usize {
+        self.wavelength_um.len()
+    }
+
+    /// Checks the grid and geometry, naming `source` (usually the file) in any error.
+    pub fn validate(&self, source: &str) -> Result<()> {
+        let fail = |m: String| Err(Error::format(source, m));
+        if self.wavelength_um.is_empty() {
+            return fail("the cube has no bands (empty wavelength list)".into());
+        }
+        if self.rows == 0 || self.cols == 0 {
+            return fail(format!("the cube has zero size ({} x {})", self.rows, self.cols));
+        }
+        for (i, w) in self.wavelength_um.iter().enumerate() {
+            if !(w.is_finite() && *w > 0.0) {
+                return fail(format!("wavelength[{i}] = {w} µm is not a positive number"));
+            }
+            if i > 0 && *w <= self.wavelength_um[i - 1] {
+                return fail(format!(
+                    "wavelengths must be strictly increasing: wavelength[{}] = {} µm, wavelength[{i}] = {w} µm",
+                    i - 1,
+                    self.wavelength_um[i - 1]
+                ));
+            }
+        }
+        if let Some(f) = &self.fwhm_um {
+            if f.len() != self.wavelength_um.len() {
+                return fail(format!(
+                    "{} fwhm values for {} bands",
+                    f.len(),
+                    self.wavelength_um.len()
+                ));
+            }
+            if let Some((i, v)) = f.iter().enumerate().find(|(_, v)| !(v.is_finite() && **v > 0.0)) {
+                return fail(format!("fwhm[{i}] = {v} µm is not a positive number"));
+            }
+        }
+        let g = &self.geometry;
+        for (name, v) in [("fov_x_deg", g.fov_x_deg), ("fov_y_deg", g.fov_y_deg)] {
+            if !(v.is_finite() && v > 0.0 && v < 180.0) {
+                return fail(format!("field of view {name} = {v} must be in (0, 180) degrees"));
+            }
+        }
+        if let Some(r) = g.range_m {
+            if !(r.is_finite() && r > 0.0) {
+                return fail(format!("range_m = {r} must be > 0"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A spectral radiance cube `[band, row, col]` with its metadata.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cube {
+    /// Values, `[band, row, col]`.
+    pub data: Array3<f32>,
+    /// Wavelengths, units and geometry.
+    pub meta: CubeMeta,
+}
+
+impl Cube {
+    /// Builds a cube, checking that the array shape matches the metadata.
+    pub fn new(data: Array3<f32>, meta: CubeMeta) -> Result<Self> {
+        let (b, r, c) = data.dim();
+        if b != meta.bands() || r != meta.rows || c != meta.cols {
+            return Err(Error::param(
+                "cube shape",
+                format!("[{b}, {r}, {c}]"),
+                format!("[{}, {}, {}] as the metadata says", meta.bands(), meta.rows, meta.cols),
+            ));
+        }
+        meta.validate("cube")?;
+        Ok(Cube { data, meta })
+    }
+}
+
+/// Checks one band plane for values that are not physical radiance (NaN, ±Inf, negative),
+/// naming the source, band and first offending pixel.
+pub fn check_radiance_plane(
+    source: &str,
+    band: usize,
+    wavelength_um: f64,
+    plane: ndarray::ArrayView2<f32>,
+) -> Result<()> {
+    for ((r, c), v) in plane.indexed_iter() {
+        if !v.is_finite() || *v < 0.0 {
+            return Err(Error::format(
+                source,
+                format!(
+                    "band {band} ({wavelength_um} µm), row {r}, col {c}: radiance {v} is not a finite non-negative number"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
