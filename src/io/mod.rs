@@ -46,6 +46,11 @@ pub trait CubeReader {
     /// Reads band `band` of frame `frame` as `[row, col]`, in the cube's units, after
     /// checking every value is finite and non-negative.
     fn read_band(&mut self, frame: usize, band: usize) -> Result<Array2<f32>>;
+    /// Things the reader assumed or worked around that the user should know about
+    /// (e.g. a unit the file did not state). Empty when the file was unambiguous.
+    fn warnings(&self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 /// The file formats eoir reads and writes cubes in.

@@ -6,6 +6,8 @@
 
 use ndarray::Array3;
 
+pub mod synthetic;
+
 use crate::error::{Error, Result};
 
 /// What the numbers in a cube mean.
@@ -86,8 +88,8 @@ pub struct CubeMeta {
     pub fwhm_um: Option<Vec<f64>>,
     /// Units of the values.
     pub units: RadianceUnits,
-    /// Field of view and range.
-    pub geometry: Geometry,
+    /// Field of view and range, if the file says (the caller may supply it otherwise).
+    pub geometry: Option<Geometry>,
     /// Number of rows.
     pub rows: usize,
     /// Number of columns.
@@ -133,7 +135,9 @@ impl CubeMeta {
                 return fail(format!("fwhm[{i}] = {v} µm is not a positive number"));
             }
         }
-        let g = &self.geometry;
+        let Some(g) = &self.geometry else {
+            return Ok(());
+        };
         for (name, v) in [("fov_x_deg", g.fov_x_deg), ("fov_y_deg", g.fov_y_deg)] {
             if !(v.is_finite() && v > 0.0 && v < 180.0) {
                 return fail(format!("field of view {name} = {v} must be in (0, 180) degrees"));

@@ -1,0 +1,1 @@
+//! Built-in synthetic scenes (being written in a parallel branch).
