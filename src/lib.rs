@@ -17,6 +17,9 @@
 //! - [`atmosphere`]: Fried parameter, turbulence and aerosol transfer functions.
 //! - [`sensor`]: the sensor configuration schema, validation and the system OTF cascade.
 //! - [`plot`]: PNG line plots with an embedded font (no system font libraries).
+//! - [`report`]: figures of merit (MTF curves, …) and their plots.
+//! - [`imaging`]: the engine — spectral weights, frequency-domain accumulation, detector sampling.
+//! - [`pipeline`]: the whole chain top to bottom, and the products it writes.
 //! - [`scene`]: the spectral radiance cube type and its geometry.
 //! - [`io`]: cube readers/writers (ENVI, spectral EXR, NPY, HDF5) and product writers.
 #![warn(missing_docs)]
@@ -24,11 +27,14 @@
 pub mod atmosphere;
 pub mod constants;
 pub mod error;
+pub mod imaging;
 pub mod io;
 pub mod motion;
 pub mod optics;
+pub mod pipeline;
 pub mod plot;
 pub mod radiometry;
+pub mod report;
 pub mod scene;
 pub mod sensor;
 pub mod spectrum;

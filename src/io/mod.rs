@@ -191,3 +191,56 @@ where
 pub fn write_all(w: &mut impl Write, bytes: &[u8], path: &Path) -> Result<()> {
     w.write_all(bytes).map_err(|e| Error::io(path, e))
 }
+
+/// A cube already in memory, served band by band (for library users who build cubes in
+/// code, and for tests). Planes are checked like a file's.
+#[derive(Debug, Clone)]
+pub struct MemoryCube {
+    frames: Vec<Cube>,
+    frame_time_s: Option<f64>,
+}
+
+impl MemoryCube {
+    /// One frame.
+    pub fn new(cube: Cube) -> Self {
+        MemoryCube { frames: vec![cube], frame_time_s: None }
+    }
+
+    /// A sequence of frames sharing wavelength grid, size and geometry.
+    pub fn sequence(frames: Vec<Cube>, frame_time_s: Option<f64>) -> Result<Self> {
+        let first = frames
+            .first()
+            .ok_or_else(|| Error::param("sequence", "0 frames", "at least one frame"))?;
+        if let Some((i, _)) = frames.iter().enumerate().find(|(_, f)| f.meta != first.meta) {
+            return Err(Error::param(
+                "sequence",
+                format!("frame {i}"),
+                "the same wavelengths, size, units and geometry as frame 0",
+            ));
+        }
+        Ok(MemoryCube { frames, frame_time_s })
+    }
+}
+
+impl CubeReader for MemoryCube {
+    fn meta(&self) -> &CubeMeta {
+        &self.frames[0].meta
+    }
+    fn frames(&self) -> usize {
+        self.frames.len()
+    }
+    fn frame_time_s(&self) -> Option<f64> {
+        self.frame_time_s
+    }
+    fn read_band(&mut self, frame: usize, band: usize) -> Result<Array2<f32>> {
+        let cube = self.frames.get(frame).ok_or_else(|| {
+            Error::param("frame", frame, format!("< {} frames", self.frames.len()))
+        })?;
+        if band >= cube.meta.bands() {
+            return Err(Error::param("band", band, format!("< {} bands", cube.meta.bands())));
+        }
+        let plane = cube.data.index_axis(ndarray::Axis(0), band);
+        crate::scene::check_radiance_plane("memory cube", band, cube.meta.wavelength_um[band], plane)?;
+        Ok(plane.to_owned())
+    }
+}

@@ -1,0 +1,271 @@
+//! CLI glue for `eoir run`, `eoir demo` and `eoir scene`.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use eoir::pipeline::{self, RunOptions};
+use eoir::scene::synthetic::{self, SceneParams};
+use eoir::scene::Geometry;
+use eoir::sensor::{presets, SensorConfig};
+
+/// Arguments of `eoir run`.
+#[derive(Debug, clap::Args)]
+pub struct RunArgs {
+    /// Sensor: a TOML file or a preset name.
+    #[arg(long)]
+    sensor: String,
+    /// Input radiance cube (.hdr ENVI, .exr spectral OpenEXR, .npy + .json, .h5 HDF5).
+    input: PathBuf,
+    /// Output directory.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Seed for all random effects.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Override a sensor field, e.g. `--set detector.integration_time_s=2e-3` (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+    /// Scene field of view `H,V` in degrees, if the input file does not give one.
+    #[arg(long, value_name = "H,V")]
+    fov_deg: Option<String>,
+    /// No progress bar or summary.
+    #[arg(long)]
+    quiet: bool,
+}
+
+/// Arguments of `eoir demo`.
+#[derive(Debug, clap::Args)]
+pub struct DemoArgs {
+    /// Output directory.
+    #[arg(short, long, default_value = "eoir-demo")]
+    output: PathBuf,
+    /// Sensor: a TOML file or a preset name.
+    #[arg(long, default_value = "multimir")]
+    sensor: String,
+    /// Override a sensor field (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+    /// Scene oversampling relative to the detector pitch.
+    #[arg(long, default_value_t = 2)]
+    oversampling: usize,
+    /// Seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+/// Arguments of `eoir scene`.
+#[derive(Debug, clap::Args)]
+pub struct SceneArgs {
+    /// Scene kind: thermal, bars, edge, blackbody, ramp.
+    kind: String,
+    /// Output file; the format follows the extension (.hdr, .exr, .npy, .h5).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Rows before oversampling.
+    #[arg(long, default_value_t = 288)]
+    rows: usize,
+    /// Columns before oversampling.
+    #[arg(long, default_value_t = 384)]
+    cols: usize,
+    /// Oversampling factor k: the cube is (rows·k) × (cols·k).
+    #[arg(long, default_value_t = 1)]
+    oversampling: usize,
+    /// Shortest wavelength, µm.
+    #[arg(long, default_value_t = 3.0)]
+    lo_um: f64,
+    /// Longest wavelength, µm.
+    #[arg(long, default_value_t = 5.5)]
+    hi_um: f64,
+    /// Number of bands.
+    #[arg(long, default_value_t = 51)]
+    bands: usize,
+    /// Horizontal field of view, degrees (vertical follows from rows/cols).
+    #[arg(long, default_value_t = 5.28)]
+    fov_deg: f64,
+    /// Range to the scene, m.
+    #[arg(long)]
+    range_m: Option<f64>,
+    /// Seed for textures.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Night: no reflected sunlight.
+    #[arg(long)]
+    night: bool,
+    /// Temperature for `blackbody`, K.
+    #[arg(long, default_value_t = 300.0)]
+    temperature_k: f64,
+    /// Emissivity for `blackbody`.
+    #[arg(long, default_value_t = 1.0)]
+    emissivity: f64,
+    /// Low temperature (`edge`, `ramp`, `bars` background), K.
+    #[arg(long, default_value_t = 295.0)]
+    t_low_k: f64,
+    /// High temperature (`edge`, `ramp`, `bars` bars), K.
+    #[arg(long, default_value_t = 305.0)]
+    t_high_k: f64,
+    /// Edge angle, degrees.
+    #[arg(long, default_value_t = 5.0)]
+    angle_deg: f64,
+}
+
+fn progress_bar(quiet: bool, what: &str) -> Option<ProgressBar> {
+    if quiet || !std::io::stderr().is_terminal() {
+        return None;
+    }
+    let pb = ProgressBar::new(1);
+    if let Ok(style) = ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} bands ({elapsed})") {
+        pb.set_style(style.progress_chars("=> "));
+    }
+    pb.set_message(what.to_string());
+    Some(pb)
+}
+
+/// Loads the sensor and runs the input through it, writing the products.
+fn run_file(
+    sensor: &SensorConfig,
+    input: &Path,
+    output: &Path,
+    seed: u64,
+    geometry: Option<Geometry>,
+    quiet: bool,
+) -> Result<()> {
+    let mut reader = eoir::io::open(input)?;
+    let pb = progress_bar(quiet, "imaging");
+    let options = RunOptions {
+        seed,
+        geometry,
+        input_name: input.display().to_string(),
+        ..Default::default()
+    };
+    let out = pipeline::run(sensor, reader.as_mut(), &options, |done, total| {
+        if let Some(pb) = &pb {
+            pb.set_length(total as u64);
+            pb.set_position(done as u64);
+        }
+    })?;
+    if let Some(pb) = pb {
+        pb.finish_and_clear();
+    }
+    for w in &out.warnings {
+        eprintln!("warning: {w}");
+    }
+    let written = out.write(output)?;
+    if !quiet {
+        let r = &out.report;
+        println!(
+            "{}: {} x {} px, sampling {:.3} scene px/detector px ({}), K = {:.4} DN/e-, mean {:.4e} e- ({:.1} DN), saturated {:.2} %, {:.2} s",
+            sensor.name,
+            sensor.detector.cols,
+            sensor.detector.rows,
+            r["sampling"]["ratio_x"].as_f64().unwrap_or(f64::NAN),
+            r["sampling"]["method"].as_str().unwrap_or(""),
+            sensor.detector.gain(),
+            r["signal"]["mean_electrons"].as_f64().unwrap_or(f64::NAN),
+            r["signal"]["mean_dn"].as_f64().unwrap_or(f64::NAN),
+            r["signal"]["saturated_percent"].as_f64().unwrap_or(f64::NAN),
+            r["timings_s"]["total"].as_f64().unwrap_or(f64::NAN),
+        );
+        for p in written {
+            println!("wrote {}", p.display());
+        }
+    }
+    Ok(())
+}
+
+/// `eoir run`.
+pub fn run(args: RunArgs) -> Result<()> {
+    let sensor = presets::load(&args.sensor, &args.set)?;
+    let geometry = match &args.fov_deg {
+        Some(t) => {
+            let (h, v) = super::parse_pair(t, "--fov-deg")?;
+            Some(Geometry { fov_x_deg: h, fov_y_deg: v, range_m: None })
+        }
+        None => None,
+    };
+    run_file(&sensor, &args.input, &args.output, args.seed, geometry, args.quiet)
+}
+
+/// `eoir demo`: the thermal scene, sized to cover the sensor at `oversampling` scene samples
+/// per detector pixel and its spectral band, through the sensor.
+pub fn demo(args: DemoArgs) -> Result<()> {
+    let sensor = presets::load(&args.sensor, &args.set)?;
+    if args.oversampling == 0 {
+        bail!("--oversampling must be at least 1");
+    }
+    let response = sensor.spectral_response()?;
+    let (lo, hi) = response.support_um();
+    if !(lo.is_finite() && hi.is_finite()) {
+        bail!("sensor `{}` has an unbounded spectral response; give it a [filter]", sensor.name);
+    }
+    // Bands every ~0.02 µm across the response, at least 24.
+    let bands = (((hi - lo) / 0.02).ceil() as usize + 1).max(24);
+    let params = SceneParams {
+        rows: sensor.detector.rows,
+        cols: sensor.detector.cols,
+        oversampling: args.oversampling,
+        wavelength_um: SceneParams::uniform_grid(lo, hi, bands)?,
+        fov_x_deg: (sensor.ifov_rad() * sensor.detector.cols as f64).to_degrees(),
+        range_m: Some(1900.0),
+        seed: args.seed,
+        sun: true,
+    };
+    std::fs::create_dir_all(&args.output)
+        .with_context(|| format!("creating {}", args.output.display()))?;
+    let scene_path = args.output.join("scene.hdr");
+    let cube = synthetic::thermal(&params)?;
+    eoir::io::write_cube(&scene_path, &cube)?;
+    drop(cube);
+    if !args.quiet {
+        println!(
+            "wrote {} (thermal scene, {} x {} x {} bands, {:.3}–{:.3} µm)",
+            scene_path.display(),
+            params.cols * params.oversampling,
+            params.rows * params.oversampling,
+            bands,
+            lo,
+            hi
+        );
+    }
+    run_file(&sensor, &scene_path, &args.output, args.seed, None, args.quiet)
+}
+
+/// `eoir scene`.
+pub fn scene(args: SceneArgs) -> Result<()> {
+    let params = SceneParams {
+        rows: args.rows,
+        cols: args.cols,
+        oversampling: args.oversampling,
+        wavelength_um: SceneParams::uniform_grid(args.lo_um, args.hi_um, args.bands)?,
+        fov_x_deg: args.fov_deg,
+        range_m: args.range_m,
+        seed: args.seed,
+        sun: !args.night,
+    };
+    let cube = match args.kind.as_str() {
+        "thermal" => synthetic::thermal(&params)?,
+        "bars" => synthetic::bars(&params, args.t_high_k, args.t_low_k)?,
+        "edge" => synthetic::edge(&params, args.t_low_k, args.t_high_k, args.angle_deg)?,
+        "blackbody" => synthetic::blackbody(&params, args.temperature_k, args.emissivity)?,
+        "ramp" => synthetic::ramp(&params, args.t_low_k, args.t_high_k)?,
+        other => bail!(
+            "unknown scene kind `{other}`; choose one of: {}",
+            synthetic::KINDS.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
+        ),
+    };
+    eoir::io::write_cube(&args.output, &cube)?;
+    println!(
+        "wrote {} ({} scene, {} x {} x {} bands)",
+        args.output.display(),
+        args.kind,
+        cube.meta.cols,
+        cube.meta.rows,
+        cube.meta.bands()
+    );
+    Ok(())
+}

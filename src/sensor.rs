@@ -1,1 +1,0 @@
-//! sensor (in progress)

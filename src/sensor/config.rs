@@ -1,0 +1,815 @@
+//! The sensor configuration schema (TOML), its validation and `--set` overrides.
+//!
+//! A sensor file has one section per stage of the chain. Transfer-function sections are
+//! optional: a section that is present is enabled, and its name is the name of the
+//! component everywhere else (the `eoir mtf` CSV columns, reports). Unknown keys are
+//! errors. Relative paths inside the file (CSV tables) are resolved against the file's
+//! directory.
+//!
+//! ```toml
+//! name = "example-mwir"
+//! [optics]
+//! focal_length_m = 0.1
+//! f_number = 2.0
+//! transmission = { kind = "constant", value = 0.9 }
+//! [filter]
+//! kind = "top_hat"
+//! lo_um = 4.55
+//! hi_um = 5.2
+//! [detector]
+//! rows = 288
+//! cols = 384
+//! pitch_m = 24e-6
+//! active_width_m = 20e-6
+//! integration_time_s = 2.6e-3
+//! quantum_efficiency = { kind = "photon_detector", peak = 0.7, cutoff_um = 5.2 }
+//! [jitter]
+//! sigma_rad = 20e-6
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{require_in_range, require_non_negative, require_positive, Error, Result};
+use crate::spectrum::Spectrum;
+
+fn one() -> f64 {
+    1.0
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn unit_spectrum() -> SpectrumConfig {
+    SpectrumConfig::Constant { value: 1.0 }
+}
+
+/// A spectral curve as written in a sensor file, selected by `kind`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SpectrumConfig {
+    /// The same value at every wavelength.
+    Constant {
+        /// The value (e.g. a transmission in [0, 1]).
+        value: f64,
+    },
+    /// A band-pass with 50 % points at `lo_um` and `hi_um` and linear edges.
+    TopHat {
+        /// Lower 50 % wavelength, µm.
+        lo_um: f64,
+        /// Upper 50 % wavelength, µm.
+        hi_um: f64,
+        /// Full width of each linear edge, µm (0 = sharp).
+        #[serde(default)]
+        edge_width_um: f64,
+        /// In-band value.
+        #[serde(default = "one")]
+        peak: f64,
+    },
+    /// A Gaussian response.
+    Gaussian {
+        /// Centre wavelength, µm.
+        center_um: f64,
+        /// Full width at half maximum, µm.
+        fwhm_um: f64,
+        /// Peak value.
+        #[serde(default = "one")]
+        peak: f64,
+    },
+    /// An ideal photon detector: `peak · λ/λc` below the cutoff, 0 above.
+    PhotonDetector {
+        /// Quantum efficiency at the cutoff wavelength.
+        peak: f64,
+        /// Cutoff wavelength, µm.
+        cutoff_um: f64,
+    },
+    /// A table given inline (linear interpolation, zero outside).
+    Table {
+        /// Wavelengths, µm, strictly increasing.
+        wavelength_um: Vec<f64>,
+        /// Values at those wavelengths.
+        value: Vec<f64>,
+    },
+    /// A two-column CSV file (µm, value), relative to the sensor file's directory.
+    Csv {
+        /// Path of the CSV file.
+        path: PathBuf,
+    },
+}
+
+impl SpectrumConfig {
+    /// Builds the spectrum, resolving relative paths against `base_dir` and naming `field`
+    /// in errors.
+    pub fn build(&self, base_dir: &Path, field: &str) -> Result<Spectrum> {
+        let named = |e: Error| match e {
+            Error::InvalidParameter {
+                field: f,
+                value,
+                expected,
+            } => Error::InvalidParameter {
+                field: format!("{field}.{f}"),
+                value,
+                expected,
+            },
+            other => other,
+        };
+        match self {
+            SpectrumConfig::Constant { value } => {
+                require_non_negative(&format!("{field}.value"), *value)?;
+                Ok(Spectrum::constant(*value))
+            }
+            SpectrumConfig::TopHat {
+                lo_um,
+                hi_um,
+                edge_width_um,
+                peak,
+            } => Spectrum::top_hat(*lo_um, *hi_um, *edge_width_um, *peak).map_err(named),
+            SpectrumConfig::Gaussian {
+                center_um,
+                fwhm_um,
+                peak,
+            } => Spectrum::gaussian(*center_um, *fwhm_um, *peak).map_err(named),
+            SpectrumConfig::PhotonDetector { peak, cutoff_um } => {
+                Spectrum::photon_detector(*peak, *cutoff_um).map_err(named)
+            }
+            SpectrumConfig::Table {
+                wavelength_um,
+                value,
+            } => Spectrum::table(wavelength_um.clone(), value.clone()).map_err(named),
+            SpectrumConfig::Csv { path } => Spectrum::from_csv(&resolve(base_dir, path)),
+        }
+    }
+}
+
+/// Resolves `path` against `base_dir` unless it is absolute.
+pub(crate) fn resolve(base_dir: &Path, path: &Path) -> PathBuf {
+    if path.is_absolute() {
+        path.to_path_buf()
+    } else {
+        base_dir.join(path)
+    }
+}
+
+/// `[optics]`: the lens.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OpticsConfig {
+    /// Effective focal length, m.
+    pub focal_length_m: f64,
+    /// F-number N = focal length / entrance-pupil diameter.
+    pub f_number: f64,
+    /// Central obscuration ratio R = obscuration diameter / aperture diameter (0 = clear).
+    #[serde(default)]
+    pub obscuration_ratio: f64,
+    /// Spectral transmission of the optics.
+    #[serde(default = "unit_spectrum")]
+    pub transmission: SpectrumConfig,
+    /// Apply the cos⁴θ off-axis irradiance fall-off.
+    #[serde(default)]
+    pub cos4: bool,
+}
+
+/// `[detector]`: the focal-plane array and its electronics.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DetectorConfig {
+    /// Number of pixel rows.
+    pub rows: usize,
+    /// Number of pixel columns.
+    pub cols: usize,
+    /// Pixel pitch (centre-to-centre spacing), m, the same in x and y.
+    pub pitch_m: f64,
+    /// Photosensitive width of a pixel along x, m (≤ pitch).
+    pub active_width_m: f64,
+    /// Photosensitive height along y, m (defaults to `active_width_m`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub active_height_m: Option<f64>,
+    /// Integration (exposure) time, s.
+    pub integration_time_s: f64,
+    /// Quantum efficiency η(λ), electrons per photon.
+    pub quantum_efficiency: SpectrumConfig,
+    /// Full-well capacity, electrons.
+    #[serde(default = "default_full_well")]
+    pub full_well_e: f64,
+    /// ADC resolution, bits (1–16).
+    #[serde(default = "default_bits")]
+    pub bits: u32,
+    /// Conversion gain K, DN per electron. Omitted: chosen so that `full_well_e` maps to
+    /// full scale.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gain_dn_per_e: Option<f64>,
+    /// Black level (offset) added after conversion, DN.
+    #[serde(default)]
+    pub offset_dn: f64,
+}
+
+fn default_full_well() -> f64 {
+    1.0e7
+}
+
+fn default_bits() -> u32 {
+    14
+}
+
+impl DetectorConfig {
+    /// Photosensitive height along y, m.
+    pub fn active_height(&self) -> f64 {
+        self.active_height_m.unwrap_or(self.active_width_m)
+    }
+
+    /// Fill factor = active area / pitch².
+    pub fn fill_factor(&self) -> f64 {
+        self.active_width_m * self.active_height() / (self.pitch_m * self.pitch_m)
+    }
+
+    /// Photosensitive area A_det, m².
+    pub fn active_area_m2(&self) -> f64 {
+        self.active_width_m * self.active_height()
+    }
+
+    /// Largest DN the ADC can output, 2^bits − 1.
+    pub fn max_dn(&self) -> f64 {
+        2f64.powi(self.bits as i32) - 1.0
+    }
+
+    /// Conversion gain K, DN/e-: the configured value, or full well → full scale.
+    pub fn gain(&self) -> f64 {
+        self.gain_dn_per_e
+            .unwrap_or_else(|| (self.max_dn() - self.offset_dn) / self.full_well_e)
+    }
+}
+
+/// `[diffraction]`: the aperture (clear or obscured, from `[optics]`). On by default.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DiffractionConfig {
+    /// Include the aperture diffraction transfer function.
+    #[serde(default = "yes")]
+    pub enabled: bool,
+}
+
+impl Default for DiffractionConfig {
+    fn default() -> Self {
+        DiffractionConfig { enabled: true }
+    }
+}
+
+/// `[aberration]`: residual wavefront error (Shannon's approximation, DESIGN.md §4.5).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AberrationConfig {
+    /// RMS wavefront error, waves (reliable up to ~0.1; W_pp/3.5 is a rule of thumb).
+    pub rms_waves: f64,
+}
+
+/// `[defocus]`: give exactly one of `w020_waves` or `focus_shift_m`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DefocusConfig {
+    /// Edge wavefront error W020, waves (the same at every wavelength).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub w020_waves: Option<f64>,
+    /// Focus shift δz, m; W020 = δz / (8 N² λ) then depends on wavelength.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub focus_shift_m: Option<f64>,
+}
+
+/// `[motion]`: linear smear during the integration time. Give exactly one of
+/// `smear_rad`, `angular_rate_rad_s`, or `velocity_m_s` with `range_m`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotionConfig {
+    /// Angular smear length during one integration, rad.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub smear_rad: Option<f64>,
+    /// Line-of-sight angular rate, rad/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angular_rate_rad_s: Option<f64>,
+    /// Transverse velocity of the scene relative to the sensor, m/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity_m_s: Option<f64>,
+    /// Range to the moving scene, m (with `velocity_m_s`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub range_m: Option<f64>,
+    /// Direction of motion in the image, degrees from +x (columns) toward +y (rows).
+    #[serde(default)]
+    pub direction_deg: f64,
+}
+
+/// `[jitter]`: random line-of-sight jitter.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JitterConfig {
+    /// RMS jitter per axis, rad.
+    pub sigma_rad: f64,
+}
+
+/// `[gaussian]`: a global Gaussian blur (e.g. to stand for unmodelled effects).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GaussianConfig {
+    /// RMS width along x, rad.
+    pub sigma_rad: f64,
+    /// RMS width along y, rad (defaults to `sigma_rad`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_y_rad: Option<f64>,
+}
+
+/// `[turbulence]`: long-exposure atmospheric turbulence, selected by `path`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "path", rename_all = "snake_case", deny_unknown_fields)]
+pub enum TurbulenceConfig {
+    /// Horizontal path with constant Cn².
+    Horizontal {
+        /// Refractive-index structure constant Cn², m^-2/3.
+        cn2: f64,
+        /// Path length, m.
+        range_m: f64,
+    },
+    /// Slant path through Cn²(h) = Cn²₀ h^(−4/3).
+    Slant {
+        /// Cn² at 1 m height, m^-2/3.
+        cn2_at_1m: f64,
+        /// Sensor height above ground, m (> 0).
+        sensor_height_m: f64,
+        /// Target height above ground, m (> 0).
+        target_height_m: f64,
+        /// Slant range, m.
+        range_m: f64,
+    },
+}
+
+/// `[aerosol]`: aerosol forward-scattering transfer function (DESIGN.md §4.8).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AerosolConfig {
+    /// Absorption coefficient k, 1/m.
+    pub absorption_per_m: f64,
+    /// Scattering coefficient σ, 1/m.
+    pub scattering_per_m: f64,
+    /// Path length, m.
+    pub range_m: f64,
+    /// Typical particle radius a, m.
+    pub particle_radius_m: f64,
+    /// Divide by the DC value exp(−kR) (use when `[atmosphere] transmission` already holds
+    /// the path absorption, so it is not counted twice).
+    #[serde(default)]
+    pub dc_normalised: bool,
+}
+
+/// `[measured]`: a measured rotationally symmetric MTF (cycles/mrad, MTF): a CSV file or
+/// an inline table.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeasuredConfig {
+    /// Two-column CSV (cycles/mrad, MTF), relative to the sensor file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub csv: Option<PathBuf>,
+    /// Inline frequencies, cycles/mrad.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub freq_cy_per_mrad: Option<Vec<f64>>,
+    /// Inline MTF values.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mtf: Option<Vec<f64>>,
+}
+
+/// `[atmosphere]`: the path's spectral transmission, applied in the spectral chain.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AtmosphereConfig {
+    /// Path transmission τ_atm(λ).
+    pub transmission: SpectrumConfig,
+}
+
+/// A complete sensor description, as read from a TOML file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensorConfig {
+    /// Short name.
+    pub name: String,
+    /// One-line description.
+    #[serde(default)]
+    pub description: String,
+    /// The lens.
+    pub optics: OpticsConfig,
+    /// Spectral filter (band-pass); omitted = 1.
+    #[serde(default = "unit_spectrum")]
+    pub filter: SpectrumConfig,
+    /// The focal-plane array and electronics.
+    pub detector: DetectorConfig,
+    /// Path transmission in the spectral chain.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub atmosphere: Option<AtmosphereConfig>,
+    /// Aperture diffraction (on by default).
+    #[serde(default)]
+    pub diffraction: DiffractionConfig,
+    /// Shannon aberration.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub aberration: Option<AberrationConfig>,
+    /// Defocus.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub defocus: Option<DefocusConfig>,
+    /// Linear motion smear.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion: Option<MotionConfig>,
+    /// Line-of-sight jitter.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub jitter: Option<JitterConfig>,
+    /// Atmospheric turbulence.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub turbulence: Option<TurbulenceConfig>,
+    /// Aerosol scattering.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub aerosol: Option<AerosolConfig>,
+    /// Global Gaussian blur.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gaussian: Option<GaussianConfig>,
+    /// Measured MTF.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub measured: Option<MeasuredConfig>,
+    /// Directory that relative paths in this description are resolved against.
+    #[serde(skip)]
+    pub base_dir: PathBuf,
+}
+
+impl SensorConfig {
+    /// Loads a sensor file, applies `overrides` (`key.path=value`, see
+    /// [`apply_override`]) and validates the result. Errors name the file, the line or key,
+    /// and what is valid.
+    pub fn load(path: &Path, overrides: &[String]) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let base_dir = path
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| PathBuf::from("."));
+        Self::from_toml_str(&text, &path.display().to_string(), base_dir, overrides)
+    }
+
+    /// Parses a sensor description from TOML text. `source` names it in errors (a file
+    /// name or a preset name); `base_dir` resolves relative paths.
+    pub fn from_toml_str(
+        text: &str,
+        source: &str,
+        base_dir: PathBuf,
+        overrides: &[String],
+    ) -> Result<Self> {
+        // Parse the text as written first, so errors point at its lines.
+        let mut config: SensorConfig =
+            toml::from_str(text).map_err(|e| toml_error(source, text, &e))?;
+        if !overrides.is_empty() {
+            let mut value: toml::Table =
+                toml::from_str(text).map_err(|e| toml_error(source, text, &e))?;
+            for o in overrides {
+                apply_override(&mut value, o)?;
+            }
+            config = toml::Value::Table(value).try_into().map_err(|e: toml::de::Error| {
+                Error::format(
+                    source,
+                    format!(
+                        "after --set {}: {}",
+                        overrides.join(" --set "),
+                        e.message().trim()
+                    ),
+                )
+            })?;
+        }
+        config.base_dir = base_dir;
+        config.validate().map_err(|e| match e {
+            Error::InvalidParameter { .. } => Error::format(source, e.to_string()),
+            other => other,
+        })?;
+        Ok(config)
+    }
+
+    /// The fully resolved description as TOML (what `eoir` writes next to every output).
+    pub fn to_toml_string(&self) -> Result<String> {
+        toml::to_string_pretty(self)
+            .map_err(|e| Error::param("sensor", &self.name, format!("serialisable to TOML: {e}")))
+    }
+
+    /// Checks every value against its physical range.
+    pub fn validate(&self) -> Result<()> {
+        let o = &self.optics;
+        require_positive("optics.focal_length_m", o.focal_length_m)?;
+        require_positive("optics.f_number", o.f_number)?;
+        if !(o.obscuration_ratio.is_finite() && (0.0..1.0).contains(&o.obscuration_ratio)) {
+            return Err(Error::param(
+                "optics.obscuration_ratio",
+                o.obscuration_ratio,
+                "a number in [0, 1)",
+            ));
+        }
+        let d = &self.detector;
+        if d.rows == 0 || d.cols == 0 {
+            return Err(Error::param(
+                "detector.rows/cols",
+                format!("{} x {}", d.rows, d.cols),
+                "at least 1 x 1 pixels",
+            ));
+        }
+        require_positive("detector.pitch_m", d.pitch_m)?;
+        require_positive("detector.active_width_m", d.active_width_m)?;
+        if let Some(h) = d.active_height_m {
+            require_positive("detector.active_height_m", h)?;
+        }
+        if d.active_width_m > d.pitch_m * (1.0 + 1e-12) {
+            return Err(Error::param(
+                "detector.active_width_m",
+                d.active_width_m,
+                format!("at most the pitch ({} m): fill factor ≤ 1", d.pitch_m),
+            ));
+        }
+        if d.active_height() > d.pitch_m * (1.0 + 1e-12) {
+            return Err(Error::param(
+                "detector.active_height_m",
+                d.active_height(),
+                format!("at most the pitch ({} m): fill factor ≤ 1", d.pitch_m),
+            ));
+        }
+        require_positive("detector.integration_time_s", d.integration_time_s)?;
+        require_positive("detector.full_well_e", d.full_well_e)?;
+        if !(1..=16).contains(&d.bits) {
+            return Err(Error::param(
+                "detector.bits",
+                d.bits,
+                "an integer in [1, 16] (DN products are 16-bit)",
+            ));
+        }
+        if let Some(k) = d.gain_dn_per_e {
+            require_positive("detector.gain_dn_per_e", k)?;
+        }
+        require_in_range("detector.offset_dn", d.offset_dn, 0.0, d.max_dn())?;
+        if let Some(a) = &self.aberration {
+            require_non_negative("aberration.rms_waves", a.rms_waves)?;
+        }
+        if let Some(df) = &self.defocus {
+            match (df.w020_waves, df.focus_shift_m) {
+                (Some(w), None) => {
+                    if !w.is_finite() {
+                        return Err(Error::param("defocus.w020_waves", w, "a finite number"));
+                    }
+                }
+                (None, Some(z)) => {
+                    if !z.is_finite() {
+                        return Err(Error::param("defocus.focus_shift_m", z, "a finite number"));
+                    }
+                }
+                _ => {
+                    return Err(Error::param(
+                        "defocus",
+                        "w020_waves and focus_shift_m",
+                        "exactly one of `w020_waves` or `focus_shift_m`",
+                    ))
+                }
+            }
+        }
+        if let Some(m) = &self.motion {
+            let given = [
+                m.smear_rad.is_some(),
+                m.angular_rate_rad_s.is_some(),
+                m.velocity_m_s.is_some(),
+            ]
+            .iter()
+            .filter(|g| **g)
+            .count();
+            if given != 1 {
+                return Err(Error::param(
+                    "motion",
+                    format!("{given} of smear_rad / angular_rate_rad_s / velocity_m_s"),
+                    "exactly one of them",
+                ));
+            }
+            if let Some(s) = m.smear_rad {
+                require_non_negative("motion.smear_rad", s)?;
+            }
+            if let Some(w) = m.angular_rate_rad_s {
+                if !w.is_finite() {
+                    return Err(Error::param("motion.angular_rate_rad_s", w, "a finite number"));
+                }
+            }
+            if let Some(v) = m.velocity_m_s {
+                if !v.is_finite() {
+                    return Err(Error::param("motion.velocity_m_s", v, "a finite number"));
+                }
+                match m.range_m {
+                    Some(r) => {
+                        require_positive("motion.range_m", r)?;
+                    }
+                    None => {
+                        return Err(Error::param(
+                            "motion.range_m",
+                            "missing",
+                            "the range to the moving scene, m, when velocity_m_s is given",
+                        ))
+                    }
+                }
+            }
+            if !m.direction_deg.is_finite() {
+                return Err(Error::param("motion.direction_deg", m.direction_deg, "a finite angle"));
+            }
+        }
+        if let Some(j) = &self.jitter {
+            require_non_negative("jitter.sigma_rad", j.sigma_rad)?;
+        }
+        if let Some(g) = &self.gaussian {
+            require_non_negative("gaussian.sigma_rad", g.sigma_rad)?;
+            if let Some(s) = g.sigma_y_rad {
+                require_non_negative("gaussian.sigma_y_rad", s)?;
+            }
+        }
+        match &self.turbulence {
+            Some(TurbulenceConfig::Horizontal { cn2, range_m }) => {
+                require_non_negative("turbulence.cn2", *cn2)?;
+                require_positive("turbulence.range_m", *range_m)?;
+            }
+            Some(TurbulenceConfig::Slant {
+                cn2_at_1m,
+                sensor_height_m,
+                target_height_m,
+                range_m,
+            }) => {
+                crate::atmosphere::SlantPath::new(
+                    *cn2_at_1m,
+                    *sensor_height_m,
+                    *target_height_m,
+                    *range_m,
+                )
+                .map_err(|e| prefix_field("turbulence", e))?;
+            }
+            None => {}
+        }
+        if let Some(a) = &self.aerosol {
+            require_non_negative("aerosol.absorption_per_m", a.absorption_per_m)?;
+            require_non_negative("aerosol.scattering_per_m", a.scattering_per_m)?;
+            require_non_negative("aerosol.range_m", a.range_m)?;
+            require_positive("aerosol.particle_radius_m", a.particle_radius_m)?;
+        }
+        if let Some(m) = &self.measured {
+            let inline = m.freq_cy_per_mrad.is_some() || m.mtf.is_some();
+            if m.csv.is_some() == inline {
+                return Err(Error::param(
+                    "measured",
+                    if inline { "csv and an inline table" } else { "nothing" },
+                    "either `csv = \"file.csv\"` or both `freq_cy_per_mrad` and `mtf`",
+                ));
+            }
+        }
+        // Spectra are checked by building them (this also reads CSV files).
+        self.spectral_response()?;
+        Ok(())
+    }
+
+    /// The dimensionless spectral response of the chain, electrons per photon at the
+    /// aperture: τ_filter · τ_optics · τ_atm · η (DESIGN.md §1, spectral chain).
+    pub fn spectral_response(&self) -> Result<Spectrum> {
+        let dir = &self.base_dir;
+        let mut s = self
+            .filter
+            .build(dir, "filter")?
+            .product(&self.optics.transmission.build(dir, "optics.transmission")?)
+            .product(
+                &self
+                    .detector
+                    .quantum_efficiency
+                    .build(dir, "detector.quantum_efficiency")?,
+            );
+        if let Some(a) = &self.atmosphere {
+            s = s.product(&a.transmission.build(dir, "atmosphere.transmission")?);
+        }
+        Ok(s)
+    }
+
+    /// The camera equation for this sensor (on axis; DESIGN.md §4.1).
+    pub fn camera_equation(&self) -> Result<crate::radiometry::CameraEquation> {
+        crate::radiometry::CameraEquation::new(
+            self.detector.integration_time_s,
+            self.detector.active_area_m2(),
+            self.optics.f_number,
+        )?
+        .with_obscuration(self.optics.obscuration_ratio)
+    }
+
+    /// Entrance-pupil (aperture) diameter D = f / N, m.
+    pub fn aperture_diameter_m(&self) -> f64 {
+        self.optics.focal_length_m / self.optics.f_number
+    }
+
+    /// Detector instantaneous field of view (angular pixel pitch) p / f, rad.
+    pub fn ifov_rad(&self) -> f64 {
+        self.detector.pitch_m / self.optics.focal_length_m
+    }
+
+    /// Detector Nyquist frequency 1 / (2 IFOV), cycles/rad.
+    pub fn nyquist_cy_per_rad(&self) -> f64 {
+        0.5 / self.ifov_rad()
+    }
+
+    /// Full field of view (horizontal, vertical) in degrees of a flat focal plane:
+    /// 2 atan(n p / 2f).
+    pub fn fov_deg(&self) -> (f64, f64) {
+        let f = self.optics.focal_length_m;
+        let p = self.detector.pitch_m;
+        let fov = |n: usize| (2.0 * (n as f64 * p / (2.0 * f)).atan()).to_degrees();
+        (fov(self.detector.cols), fov(self.detector.rows))
+    }
+
+    /// Things that are valid but probably not what the user meant.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut w = Vec::new();
+        if let (Some(a), Some(_)) = (&self.aerosol, &self.atmosphere) {
+            if !a.dc_normalised {
+                w.push(
+                    "aerosol.dc_normalised = false while [atmosphere] transmission is set: \
+                     the path absorption exp(-kR) is counted twice"
+                        .to_string(),
+                );
+            }
+        }
+        if let Some(a) = &self.aberration {
+            if a.rms_waves > 0.1 {
+                w.push(format!(
+                    "aberration.rms_waves = {} is beyond ~0.1 wave rms, where Shannon's approximation is rough",
+                    a.rms_waves
+                ));
+            }
+        }
+        w
+    }
+}
+
+/// Prefixes the field of an [`Error::InvalidParameter`] with `section.`.
+fn prefix_field(section: &str, e: Error) -> Error {
+    match e {
+        Error::InvalidParameter {
+            field,
+            value,
+            expected,
+        } => Error::InvalidParameter {
+            field: format!("{section}.{field}"),
+            value,
+            expected,
+        },
+        other => other,
+    }
+}
+
+/// Turns a TOML error into one line: `source line L: message (the line's text)`.
+fn toml_error(source: &str, text: &str, e: &toml::de::Error) -> Error {
+    let msg = e.message().trim().replace('\n', " ");
+    match e.span() {
+        Some(span) => {
+            let line_no = text[..span.start.min(text.len())].matches('\n').count() + 1;
+            let line = text.lines().nth(line_no - 1).unwrap_or("").trim();
+            Error::format(source, format!("line {line_no} (`{line}`): {msg}"))
+        }
+        None => Error::format(source, msg),
+    }
+}
+
+/// Applies one override `a.b.c=value` to a parsed TOML table. The value is parsed as a
+/// TOML value (`2e-3`, `true`, `"text"`, `[1, 2]`, `{ kind = "constant", value = 1 }`); if
+/// that fails it is taken as a string. Missing intermediate tables are created, so
+/// `--set jitter.sigma_rad=1e-5` enables jitter. Whether the key exists is checked when the
+/// result is deserialised (unknown keys are errors).
+pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
+    let (key, raw) = assignment.split_once('=').ok_or_else(|| {
+        Error::param("--set", assignment, "`section.key=value`, e.g. optics.f_number=2.5")
+    })?;
+    let key = key.trim();
+    let raw = raw.trim();
+    let parts: Vec<&str> = key.split('.').map(str::trim).collect();
+    if key.is_empty() || parts.iter().any(|p| p.is_empty()) {
+        return Err(Error::param("--set", assignment, "a dotted key such as optics.f_number"));
+    }
+    let value = match toml::from_str::<toml::Table>(&format!("v = {raw}")) {
+        Ok(mut t) => t.remove("v").unwrap_or_else(|| toml::Value::String(raw.to_string())),
+        Err(_) => toml::Value::String(raw.to_string()),
+    };
+    let mut cur = table;
+    for (i, part) in parts.iter().enumerate() {
+        if i + 1 == parts.len() {
+            cur.insert(part.to_string(), value);
+            return Ok(());
+        }
+        let entry = cur
+            .entry(part.to_string())
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        cur = match entry {
+            toml::Value::Table(t) => t,
+            other => {
+                return Err(Error::param(
+                    "--set",
+                    assignment,
+                    format!(
+                        "`{}` is a value ({}), not a section",
+                        parts[..=i].join("."),
+                        other.type_str()
+                    ),
+                ))
+            }
+        };
+    }
+    Ok(())
+}

@@ -1,0 +1,426 @@
+//! The system transfer function: the product of every enabled component of a sensor.
+//!
+//! Frequencies are angular, cycles/rad in object space (DESIGN.md §3). Components that do
+//! not depend on wavelength (detector footprint, motion, jitter, Gaussian, measured MTF)
+//! are evaluated once per frequency grid; the others (diffraction with aberration and
+//! defocus, turbulence, aerosol) once per wavelength.
+
+use ndarray::{Array2, Zip};
+
+use crate::atmosphere;
+use crate::error::Result;
+use crate::motion;
+use crate::optics::{self, MeasuredMtf};
+
+use super::config::{resolve, SensorConfig, TurbulenceConfig};
+
+/// One transfer-function component; its name is the sensor-file section that enables it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Component {
+    /// Aperture diffraction, clear or centrally obscured (DESIGN.md §4.2–4.3).
+    Diffraction,
+    /// Shannon aberration factor (§4.5).
+    Aberration,
+    /// Defocus factor 2J1(a)/a (§4.4).
+    Defocus,
+    /// Detector footprint (§4.6).
+    Detector,
+    /// Linear motion smear (§4.6).
+    Motion,
+    /// Line-of-sight jitter (§4.6).
+    Jitter,
+    /// Long-exposure turbulence (§4.7).
+    Turbulence,
+    /// Aerosol scattering (§4.8).
+    Aerosol,
+    /// Global Gaussian blur.
+    Gaussian,
+    /// Measured MTF table.
+    Measured,
+}
+
+impl Component {
+    /// Every component, in the order they are listed in reports.
+    pub const ALL: [Component; 10] = [
+        Component::Diffraction,
+        Component::Aberration,
+        Component::Defocus,
+        Component::Detector,
+        Component::Motion,
+        Component::Jitter,
+        Component::Turbulence,
+        Component::Aerosol,
+        Component::Gaussian,
+        Component::Measured,
+    ];
+
+    /// The component's name: the sensor-file section and report column.
+    pub fn name(self) -> &'static str {
+        match self {
+            Component::Diffraction => "diffraction",
+            Component::Aberration => "aberration",
+            Component::Defocus => "defocus",
+            Component::Detector => "detector",
+            Component::Motion => "motion",
+            Component::Jitter => "jitter",
+            Component::Turbulence => "turbulence",
+            Component::Aerosol => "aerosol",
+            Component::Gaussian => "gaussian",
+            Component::Measured => "measured",
+        }
+    }
+
+    /// Whether the component depends on wavelength.
+    pub fn is_chromatic(self) -> bool {
+        matches!(
+            self,
+            Component::Diffraction
+                | Component::Aberration
+                | Component::Defocus
+                | Component::Turbulence
+                | Component::Aerosol
+        )
+    }
+}
+
+/// How the defocus amount is given.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum DefocusAmount {
+    /// W020 in waves at every wavelength.
+    Waves(f64),
+    /// Focus shift δz, m: W020 = δz / (8 N² λ).
+    FocusShift(f64),
+}
+
+/// How the turbulence r0 is obtained at a wavelength.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Turbulence {
+    /// Horizontal path (closed form, DESIGN.md §4.7).
+    Horizontal { cn2: f64, range_m: f64 },
+    /// Slant path: the spherical-wave weighted ∫Cn² (m^1/3), computed once.
+    Slant { weighted_cn2: f64 },
+}
+
+/// The resolved cascade of a sensor's transfer functions.
+#[derive(Debug, Clone)]
+pub struct SystemOtf {
+    components: Vec<Component>,
+    aperture_diameter_m: f64,
+    f_number: f64,
+    obscuration_ratio: f64,
+    aberration_rms_waves: f64,
+    defocus: Option<DefocusAmount>,
+    focal_length_m: f64,
+    active_width_x_m: f64,
+    active_width_y_m: f64,
+    smear_rad: f64,
+    smear_direction_rad: f64,
+    jitter_sigma_rad: f64,
+    gaussian_sigma_rad: (f64, f64),
+    turbulence: Option<Turbulence>,
+    aerosol: Option<super::config::AerosolConfig>,
+    measured: Option<MeasuredMtf>,
+}
+
+impl SystemOtf {
+    /// Resolves the enabled components of `sensor` (reads a measured-MTF file if any).
+    pub fn new(sensor: &SensorConfig) -> Result<Self> {
+        let mut components = Vec::new();
+        if sensor.diffraction.enabled {
+            components.push(Component::Diffraction);
+        }
+        let aberration_rms_waves = sensor.aberration.as_ref().map_or(0.0, |a| a.rms_waves);
+        if sensor.aberration.is_some() {
+            components.push(Component::Aberration);
+        }
+        let defocus = sensor.defocus.as_ref().map(|d| match (d.w020_waves, d.focus_shift_m) {
+            (Some(w), _) => DefocusAmount::Waves(w),
+            (None, Some(z)) => DefocusAmount::FocusShift(z),
+            (None, None) => DefocusAmount::Waves(0.0),
+        });
+        if defocus.is_some() {
+            components.push(Component::Defocus);
+        }
+        components.push(Component::Detector);
+        let (smear_rad, smear_direction_rad) = match &sensor.motion {
+            Some(m) => {
+                components.push(Component::Motion);
+                let t = sensor.detector.integration_time_s;
+                let smear = if let Some(s) = m.smear_rad {
+                    s
+                } else if let Some(w) = m.angular_rate_rad_s {
+                    motion::smear_from_angular_rate(w, t).abs()
+                } else {
+                    let v = m.velocity_m_s.unwrap_or(0.0);
+                    motion::smear_from_velocity(v, t, m.range_m.unwrap_or(1.0)).abs()
+                };
+                (smear, m.direction_deg.to_radians())
+            }
+            None => (0.0, 0.0),
+        };
+        let jitter_sigma_rad = sensor.jitter.as_ref().map_or(0.0, |j| j.sigma_rad);
+        if sensor.jitter.is_some() {
+            components.push(Component::Jitter);
+        }
+        let turbulence = match &sensor.turbulence {
+            Some(TurbulenceConfig::Horizontal { cn2, range_m }) => Some(Turbulence::Horizontal {
+                cn2: *cn2,
+                range_m: *range_m,
+            }),
+            Some(TurbulenceConfig::Slant {
+                cn2_at_1m,
+                sensor_height_m,
+                target_height_m,
+                range_m,
+            }) => {
+                let path = atmosphere::SlantPath::new(
+                    *cn2_at_1m,
+                    *sensor_height_m,
+                    *target_height_m,
+                    *range_m,
+                )?;
+                Some(Turbulence::Slant {
+                    weighted_cn2: path.spherical_weighted_cn2(),
+                })
+            }
+            None => None,
+        };
+        if turbulence.is_some() {
+            components.push(Component::Turbulence);
+        }
+        if sensor.aerosol.is_some() {
+            components.push(Component::Aerosol);
+        }
+        let gaussian_sigma_rad = sensor
+            .gaussian
+            .as_ref()
+            .map_or((0.0, 0.0), |g| (g.sigma_rad, g.sigma_y_rad.unwrap_or(g.sigma_rad)));
+        if sensor.gaussian.is_some() {
+            components.push(Component::Gaussian);
+        }
+        let measured = match &sensor.measured {
+            Some(m) => {
+                components.push(Component::Measured);
+                Some(match (&m.csv, &m.freq_cy_per_mrad, &m.mtf) {
+                    (Some(path), _, _) => MeasuredMtf::from_csv(&resolve(&sensor.base_dir, path))?,
+                    (None, Some(f), Some(v)) => MeasuredMtf::new(f.clone(), v.clone())?,
+                    _ => {
+                        return Err(crate::Error::param(
+                            "measured",
+                            "incomplete",
+                            "either `csv` or both `freq_cy_per_mrad` and `mtf`",
+                        ))
+                    }
+                })
+            }
+            None => None,
+        };
+        Ok(SystemOtf {
+            components,
+            aperture_diameter_m: sensor.aperture_diameter_m(),
+            f_number: sensor.optics.f_number,
+            obscuration_ratio: sensor.optics.obscuration_ratio,
+            aberration_rms_waves,
+            defocus,
+            focal_length_m: sensor.optics.focal_length_m,
+            active_width_x_m: sensor.detector.active_width_m,
+            active_width_y_m: sensor.detector.active_height(),
+            smear_rad,
+            smear_direction_rad,
+            jitter_sigma_rad,
+            gaussian_sigma_rad,
+            turbulence,
+            aerosol: sensor.aerosol.clone(),
+            measured,
+        })
+    }
+
+    /// The enabled components, in report order.
+    pub fn components(&self) -> &[Component] {
+        &self.components
+    }
+
+    /// Diffraction cutoff D/λ, cycles/rad.
+    pub fn cutoff_cy_per_rad(&self, wavelength_um: f64) -> f64 {
+        optics::cutoff_cy_per_rad(self.aperture_diameter_m, wavelength_um * 1e-6)
+    }
+
+    /// Fried parameter r0 at a wavelength, m, if turbulence is enabled.
+    pub fn fried_r0_m(&self, wavelength_um: f64) -> Option<f64> {
+        let lambda_m = wavelength_um * 1e-6;
+        match self.turbulence? {
+            Turbulence::Horizontal { cn2, range_m } => {
+                atmosphere::fried_r0_horizontal(lambda_m, range_m, cn2).ok()
+            }
+            Turbulence::Slant { weighted_cn2 } => {
+                Some(atmosphere::fried_r0_from_weighted_cn2(lambda_m, weighted_cn2))
+            }
+        }
+    }
+
+    /// Value of one component at angular frequency (fx, fy) cycles/rad and wavelength λ.
+    /// A component that is not enabled evaluates to 1.
+    pub fn component(&self, c: Component, fx: f64, fy: f64, wavelength_um: f64) -> f64 {
+        if !self.components.contains(&c) {
+            return 1.0;
+        }
+        self.component_unchecked(c, fx, fy, wavelength_um, self.fried_r0_m(wavelength_um))
+    }
+
+    fn component_unchecked(
+        &self,
+        c: Component,
+        fx: f64,
+        fy: f64,
+        wavelength_um: f64,
+        r0_m: Option<f64>,
+    ) -> f64 {
+        let lambda_m = wavelength_um * 1e-6;
+        let f = fx.hypot(fy);
+        let x = f / self.cutoff_cy_per_rad(wavelength_um);
+        match c {
+            Component::Diffraction => optics::diffraction_obscured(x, self.obscuration_ratio),
+            Component::Aberration => optics::aberration_shannon(x, self.aberration_rms_waves),
+            Component::Defocus => {
+                let w020 = match self.defocus {
+                    Some(DefocusAmount::Waves(w)) => w,
+                    Some(DefocusAmount::FocusShift(z)) => {
+                        optics::defocus_w020_from_focus_shift(z, self.f_number, lambda_m)
+                    }
+                    None => 0.0,
+                };
+                if x >= 1.0 {
+                    // Beyond the cutoff the diffraction term is 0; the factor is moot.
+                    1.0
+                } else {
+                    optics::defocus(x, w020)
+                }
+            }
+            Component::Detector => optics::detector_footprint(
+                fx,
+                fy,
+                self.active_width_x_m,
+                self.active_width_y_m,
+                self.focal_length_m,
+            ),
+            Component::Motion => {
+                motion::linear_motion(fx, fy, self.smear_rad, self.smear_direction_rad)
+            }
+            Component::Jitter => motion::jitter(fx, fy, self.jitter_sigma_rad),
+            Component::Gaussian => {
+                motion::gaussian(fx, fy, self.gaussian_sigma_rad.0, self.gaussian_sigma_rad.1)
+            }
+            Component::Turbulence => match r0_m {
+                Some(r0) => atmosphere::turbulence_long_exposure(f, lambda_m, r0),
+                None => 1.0,
+            },
+            Component::Aerosol => match &self.aerosol {
+                Some(a) => atmosphere::aerosol(
+                    f,
+                    lambda_m,
+                    a.absorption_per_m,
+                    a.scattering_per_m,
+                    a.range_m,
+                    a.particle_radius_m,
+                    a.dc_normalised,
+                ),
+                None => 1.0,
+            },
+            Component::Measured => self.measured.as_ref().map_or(1.0, |m| m.eval(f)),
+        }
+    }
+
+    /// The product of the enabled components whose chromatic-ness is `chromatic`.
+    fn product(&self, fx: f64, fy: f64, wavelength_um: f64, chromatic: bool, r0: Option<f64>) -> f64 {
+        self.components
+            .iter()
+            .filter(|c| c.is_chromatic() == chromatic)
+            .map(|c| self.component_unchecked(*c, fx, fy, wavelength_um, r0))
+            .product()
+    }
+
+    /// The system OTF (product of all enabled components) at one frequency and wavelength.
+    pub fn evaluate(&self, fx: f64, fy: f64, wavelength_um: f64) -> f64 {
+        let r0 = self.fried_r0_m(wavelength_um);
+        self.product(fx, fy, wavelength_um, false, r0) * self.product(fx, fy, wavelength_um, true, r0)
+    }
+
+    /// Prepares evaluation on a frequency grid: the wavelength-independent product is
+    /// computed here, once.
+    pub fn on_grid(&self, grid: &FrequencyGrid) -> GridOtf<'_> {
+        let mut achromatic = Array2::<f64>::zeros((grid.fy.len(), grid.fx.len()));
+        Zip::indexed(&mut achromatic).par_for_each(|(j, k), v| {
+            *v = self.product(grid.fx[k], grid.fy[j], 1.0, false, None);
+        });
+        GridOtf {
+            otf: self,
+            fx: grid.fx.clone(),
+            fy: grid.fy.clone(),
+            achromatic,
+        }
+    }
+}
+
+/// Frequencies of the half-plane layout of a real 2-D FFT, cycles/rad.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrequencyGrid {
+    /// Row frequencies, one per FFT row: `j / (rows·dy)` for j ≤ rows/2, else `(j − rows)/(rows·dy)`.
+    pub fy: Vec<f64>,
+    /// Column frequencies of the real-FFT half plane: `k / (cols·dx)`, k = 0 … cols/2.
+    pub fx: Vec<f64>,
+}
+
+impl FrequencyGrid {
+    /// The grid of a real FFT of a `rows × cols` frame sampled every `dy_rad` (rows) and
+    /// `dx_rad` (columns). On an even axis the Nyquist bin is given the positive frequency;
+    /// every component is even in frequency, so the sign there does not matter.
+    pub fn real_fft(rows: usize, cols: usize, dy_rad: f64, dx_rad: f64) -> Self {
+        let fy = (0..rows)
+            .map(|j| {
+                let jj = if j <= rows / 2 { j as f64 } else { j as f64 - rows as f64 };
+                jj / (rows as f64 * dy_rad)
+            })
+            .collect();
+        let fx = (0..cols / 2 + 1)
+            .map(|k| k as f64 / (cols as f64 * dx_rad))
+            .collect();
+        FrequencyGrid { fy, fx }
+    }
+}
+
+/// A [`SystemOtf`] bound to a frequency grid, with its wavelength-independent part cached.
+#[derive(Debug, Clone)]
+pub struct GridOtf<'a> {
+    otf: &'a SystemOtf,
+    fx: Vec<f64>,
+    fy: Vec<f64>,
+    achromatic: Array2<f64>,
+}
+
+impl GridOtf<'_> {
+    /// The wavelength-independent product (detector, motion, jitter, Gaussian, measured).
+    pub fn achromatic(&self) -> &Array2<f64> {
+        &self.achromatic
+    }
+
+    /// Writes the full system OTF at `wavelength_um` into `out` (shape `[fy, fx]`).
+    pub fn at_wavelength_into(&self, wavelength_um: f64, out: &mut Array2<f64>) {
+        let r0 = self.otf.fried_r0_m(wavelength_um);
+        Zip::indexed(out)
+            .and(&self.achromatic)
+            .par_for_each(|(j, k), v, a| {
+                *v = if *a == 0.0 {
+                    0.0
+                } else {
+                    a * self.otf.product(self.fx[k], self.fy[j], wavelength_um, true, r0)
+                };
+            });
+    }
+
+    /// The full system OTF at `wavelength_um`, shape `[fy, fx]`.
+    pub fn at_wavelength(&self, wavelength_um: f64) -> Array2<f64> {
+        let mut out = Array2::zeros(self.achromatic.raw_dim());
+        self.at_wavelength_into(wavelength_um, &mut out);
+        out
+    }
+}
