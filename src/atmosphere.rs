@@ -163,8 +163,7 @@ impl SlantPath {
     pub fn fried_r0(&self, wavelength_m: f64) -> Result<f64> {
         let lambda = require_positive("wavelength_m", wavelength_m)?;
         self.validate()?;
-        let k = 2.0 * PI / lambda;
-        Ok((0.423 * k * k * self.spherical_weighted_cn2()).powf(-0.6))
+        Ok(fried_r0_from_weighted_cn2(lambda, self.spherical_weighted_cn2()))
     }
 
     /// `∫₀^R Cn²₀ h(z)^{−4/3} · weight(s/R) dz`, s = R − z the distance from the target.
@@ -332,6 +331,15 @@ fn gauss_kronrod_adaptive(f: impl Fn(f64) -> f64, a: f64, b: f64, rel_tol: f64) 
     }
     // Re-sum to shed the rounding drift of the running updates.
     panels.iter().map(|p| p.2).sum()
+}
+
+/// Fried parameter from a path-weighted Cn² integral (DESIGN.md §4.7):
+/// `r0 = [0.423 k² ∫ Cn²(z) w(z) dz]^{−3/5}`, k = 2π/λ, with `weighted_cn2_m_1_3` the
+/// integral in m^{1/3} (e.g. [`SlantPath::spherical_weighted_cn2`], computed once and
+/// reused for every wavelength). Returns +∞ for a zero integral (no turbulence).
+pub fn fried_r0_from_weighted_cn2(wavelength_m: f64, weighted_cn2_m_1_3: f64) -> f64 {
+    let k = 2.0 * PI / wavelength_m;
+    (0.423 * k * k * weighted_cn2_m_1_3).powf(-0.6)
 }
 
 #[cfg(test)]

@@ -6,19 +6,7 @@
 
 use std::f64::consts::PI;
 
-/// Normalised sinc, `sin(πx)/(πx)`, with `sinc(0) = 1`.
-///
-/// Below |x| = 1e-4 the two-term series `1 − (πx)²/6` is used; its first neglected term,
-/// (πx)⁴/120 < 1e-16, is below f64 resolution, and it avoids 0/0 at the origin.
-// replaced by crate::optics::sinc at merge
-fn sinc(x: f64) -> f64 {
-    let px = PI * x;
-    if x.abs() < 1e-4 {
-        1.0 - px * px / 6.0
-    } else {
-        px.sin() / px
-    }
-}
+use crate::optics::sinc;
 
 /// Linear motion blur transfer function (DESIGN.md §4.6): `sinc(f_along · d)`.
 ///
