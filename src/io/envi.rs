@@ -1,34 +1,1142 @@
-//! envi cube format (being written in a parallel branch; this file is replaced there).
+//! ENVI cubes: a plain-text `.hdr` header next to a raw binary data file.
+//!
+//! # Reading
+//!
+//! [`EnviReader::open`] accepts either file of the pair. Given a header `X.hdr` it looks
+//! for the data in `X`, `X.img`, `X.dat`, `X.raw`, `X.bsq`, `X.bil`, `X.bip` (in that
+//! order, any letter case); given a data file `X.ext` it looks for `X.ext.hdr`, then
+//! `X.hdr`. The header's first line is `ENVI`; every other line is `key = value`, where a
+//! value in `{…}` may run over several lines and lines starting with `;` are comments.
+//! Keys are matched case-insensitively with runs of white space treated as one space;
+//! keys eoir does not use are ignored.
+//!
+//! | key | meaning |
+//! |---|---|
+//! | `samples`, `lines`, `bands` | columns, rows, bands (required) |
+//! | `header offset` | bytes to skip at the start of the data file (default 0) |
+//! | `data type` | 2 int16, 3 int32, 4 float32, 5 float64, 12 uint16 (required) |
+//! | `interleave` | `bsq`, `bil` or `bip` |
+//! | `byte order` | 0 little-endian, 1 big-endian |
+//! | `wavelength` | band centres, one per band (required) |
+//! | `wavelength units` | `Micrometers` (`micron`, `um`, `µm`), `Nanometers` (`nm`), `Millimeters`, `Meters`, `Wavenumber` (`cm-1`) |
+//! | `fwhm` | band widths, same units as `wavelength` |
+//! | `data gain values`, `data offset values` | per band: value = gain · stored + offset |
+//! | `eoir radiance units` | `W m-2 sr-1 um-1` (spectral radiance) or `W m-2 sr-1` (band-integrated) |
+//! | `eoir fov deg` | `{horizontal, vertical}` full field of view, degrees |
+//! | `eoir ifov rad` | `{x, y}` angular pixel spacing, rad (instead of `eoir fov deg`) |
+//! | `eoir range m` | range to the scene, m |
+//!
+//! Without `wavelength units` (or with `wavelength units = Unknown`) eoir assumes µm when
+//! every wavelength is below 30 and nm when every wavelength is above 200 (and says so in
+//! the reader's warnings); anything else is an error. Wavenumbers ν (cm⁻¹) become λ = 10⁴/ν µm and their widths
+//! Δλ = 10⁴ Δν / ν² µm. Bands stored in strictly decreasing wavelength order (usual for
+//! wavenumber grids) are handed out in increasing order; any other order is an error.
+//! Without `eoir radiance units` the values are taken to be spectral radiance per µm
+//! (with a warning). Without a field of view the cube has no geometry and the caller
+//! (the CLI) has to supply one.
+//!
+//! The minimal header a user writes by hand for a float32 cube of 2 bands, 480 rows and
+//! 640 columns stored band after band in `scene.img`:
+//!
+//! ```text
+//! ENVI
+//! samples = 640
+//! lines = 480
+//! bands = 2
+//! data type = 4
+//! interleave = bsq
+//! byte order = 0
+//! wavelength units = Micrometers
+//! wavelength = {8.5, 10.5}
+//! eoir radiance units = W m-2 sr-1 um-1
+//! eoir fov deg = {10.0, 7.5}
+//! ```
+//!
+//! (`fwhm`, `eoir fov deg` and `eoir range m` are optional.)
+//!
+//! # Writing
+//!
+//! [`write()`] stores float32, little-endian, band-sequential data. The header is always
+//! `<stem>.hdr`; the data file is the path given, or `<stem>.img` when the path given is
+//! the header itself. Examples: `write("out/cube.img")` and `write("out/cube.hdr")` both
+//! produce `out/cube.img` + `out/cube.hdr`; `write("out/cube.bsq")` produces
+//! `out/cube.bsq` + `out/cube.hdr`. The data file is written first and the header last,
+//! each atomically; if the header cannot be written the new data file is removed again.
 
-use std::path::Path;
+use std::collections::HashMap;
+use std::fs::File;
+use std::io::{Read, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
 
 use ndarray::Array2;
 
 use crate::error::{Error, Result};
-use crate::scene::{Cube, CubeMeta};
+use crate::scene::{check_radiance_plane, Cube, CubeMeta, Geometry, RadianceUnits};
 
-/// Band-by-band reader.
+use super::{atomic_write, write_all, CubeReader};
+
+/// Data file extensions looked for next to a header, in order of preference.
+const DATA_EXTENSIONS: [&str; 6] = ["img", "dat", "raw", "bsq", "bil", "bip"];
+
+/// How the samples of one pixel value are stored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum SampleType {
+    /// Signed 16-bit integer.
+    I16,
+    /// Unsigned 16-bit integer.
+    U16,
+    /// Signed 32-bit integer.
+    I32,
+    /// IEEE single precision.
+    F32,
+    /// IEEE double precision.
+    F64,
+}
+
+impl SampleType {
+    /// Bytes per sample.
+    pub(crate) fn size(self) -> usize {
+        match self {
+            SampleType::I16 | SampleType::U16 => 2,
+            SampleType::I32 | SampleType::F32 => 4,
+            SampleType::F64 => 8,
+        }
+    }
+
+    /// Decodes one sample from the first `size()` bytes of `b`.
+    #[inline]
+    fn decode(self, b: &[u8], big_endian: bool) -> f64 {
+        macro_rules! get {
+            ($t:ty, $n:expr) => {{
+                let mut a = [0u8; $n];
+                a.copy_from_slice(&b[..$n]);
+                if big_endian {
+                    <$t>::from_be_bytes(a)
+                } else {
+                    <$t>::from_le_bytes(a)
+                }
+            }};
+        }
+        match self {
+            SampleType::I16 => f64::from(get!(i16, 2)),
+            SampleType::U16 => f64::from(get!(u16, 2)),
+            SampleType::I32 => f64::from(get!(i32, 4)),
+            SampleType::F32 => f64::from(get!(f32, 4)),
+            SampleType::F64 => get!(f64, 8),
+        }
+    }
+}
+
+/// Converts packed samples to f32, applying `value = gain · stored + offset` when a
+/// scaling is given, and appends them to `out`.
+pub(crate) fn decode_into(
+    bytes: &[u8],
+    ty: SampleType,
+    big_endian: bool,
+    scale: Option<(f64, f64)>,
+    out: &mut Vec<f32>,
+) {
+    let n = ty.size();
+    match scale {
+        None => out.extend(
+            bytes
+                .chunks_exact(n)
+                .map(|c| ty.decode(c, big_endian) as f32),
+        ),
+        Some((gain, offset)) => out.extend(
+            bytes
+                .chunks_exact(n)
+                .map(|c| (gain * ty.decode(c, big_endian) + offset) as f32),
+        ),
+    }
+}
+
+/// A spectral grid in increasing order and how it maps onto the stored bands.
+pub(crate) struct BandOrder {
+    /// Band centres, µm, strictly increasing.
+    pub(crate) wavelength_um: Vec<f64>,
+    /// Band widths, µm, in the same order.
+    pub(crate) fwhm_um: Option<Vec<f64>>,
+    /// Output band index → stored band index.
+    pub(crate) band_map: Vec<usize>,
+    /// Whether the stored order was reversed.
+    pub(crate) reversed: bool,
+}
+
+/// Checks a wavelength list (µm) and brings it into strictly increasing order. A strictly
+/// decreasing list is reversed; any other order is an error naming the first pair out of
+/// order.
+pub(crate) fn order_bands(
+    source: &Path,
+    wavelength_um: Vec<f64>,
+    fwhm_um: Option<Vec<f64>>,
+) -> Result<BandOrder> {
+    if wavelength_um.is_empty() {
+        return Err(Error::format(source, "the wavelength list is empty"));
+    }
+    if let Some((i, w)) = wavelength_um
+        .iter()
+        .enumerate()
+        .find(|(_, w)| !(w.is_finite() && **w > 0.0))
+    {
+        return Err(Error::format(
+            source,
+            format!("wavelength[{i}] = {w} µm is not a positive number"),
+        ));
+    }
+    if let Some(f) = &fwhm_um {
+        if f.len() != wavelength_um.len() {
+            return Err(Error::format(
+                source,
+                format!(
+                    "{} fwhm values for {} wavelengths",
+                    f.len(),
+                    wavelength_um.len()
+                ),
+            ));
+        }
+    }
+    let n = wavelength_um.len();
+    let increasing = wavelength_um.windows(2).all(|w| w[1] > w[0]);
+    let decreasing = wavelength_um.windows(2).all(|w| w[1] < w[0]);
+    if increasing {
+        return Ok(BandOrder {
+            wavelength_um,
+            fwhm_um,
+            band_map: (0..n).collect(),
+            reversed: false,
+        });
+    }
+    if decreasing {
+        let mut wl = wavelength_um;
+        wl.reverse();
+        let fw = fwhm_um.map(|mut f| {
+            f.reverse();
+            f
+        });
+        return Ok(BandOrder {
+            wavelength_um: wl,
+            fwhm_um: fw,
+            band_map: (0..n).rev().collect(),
+            reversed: true,
+        });
+    }
+    // Name the first pair that breaks the direction the list starts in.
+    let up = wavelength_um[1] > wavelength_um[0];
+    let i = wavelength_um
+        .windows(2)
+        .position(|w| if up { w[1] <= w[0] } else { w[1] >= w[0] })
+        .unwrap_or(0);
+    Err(Error::format(
+        source,
+        format!(
+            "wavelengths must be strictly increasing or strictly decreasing, but wavelength[{i}] = {} µm and wavelength[{}] = {} µm break the order",
+            wavelength_um[i],
+            i + 1,
+            wavelength_um[i + 1]
+        ),
+    ))
+}
+
+/// Builds the cube geometry from either a full field of view (degrees) or an angular
+/// pixel spacing (rad), plus an optional range; `keys` names the fields for messages as
+/// `[fov, ifov, range]`.
+pub(crate) fn geometry_from(
+    source: &Path,
+    keys: [&str; 3],
+    fov_deg: Option<[f64; 2]>,
+    ifov_rad: Option<[f64; 2]>,
+    range_m: Option<f64>,
+    rows: usize,
+    cols: usize,
+) -> Result<Option<Geometry>> {
+    let [k_fov, k_ifov, k_range] = keys;
+    if let Some(r) = range_m {
+        if !(r.is_finite() && r > 0.0) {
+            return Err(Error::format(
+                source,
+                format!("{k_range} = {r}: expected a range > 0 m"),
+            ));
+        }
+    }
+    let mut g = match (fov_deg, ifov_rad) {
+        (Some(_), Some(_)) => {
+            return Err(Error::format(
+                source,
+                format!("both {k_fov} and {k_ifov} are given; give only one of them"),
+            ))
+        }
+        (None, None) => {
+            if range_m.is_some() {
+                return Err(Error::format(
+                    source,
+                    format!("{k_range} is given without a field of view; add {k_fov} = [h, v] (degrees) or {k_ifov} = [x, y] (rad)"),
+                ));
+            }
+            return Ok(None);
+        }
+        (Some([h, v]), None) => {
+            for (name, x) in [("horizontal", h), ("vertical", v)] {
+                if !(x.is_finite() && x > 0.0 && x < 180.0) {
+                    return Err(Error::format(
+                        source,
+                        format!("{k_fov}: {name} field of view {x} must be in (0, 180) degrees"),
+                    ));
+                }
+            }
+            Geometry {
+                fov_x_deg: h,
+                fov_y_deg: v,
+                range_m: None,
+            }
+        }
+        (None, Some([x, y])) => {
+            for (name, a) in [("x", x), ("y", y)] {
+                if !(a.is_finite() && a > 0.0) {
+                    return Err(Error::format(
+                        source,
+                        format!("{k_ifov}: {name} pixel spacing {a} must be > 0 rad"),
+                    ));
+                }
+            }
+            Geometry::from_ifov(x, y, rows, cols)
+        }
+    };
+    g.range_m = range_m;
+    Ok(Some(g))
+}
+
+/// Parses a radiance unit string, naming `key` and the valid spellings on failure.
+pub(crate) fn parse_units(source: &Path, key: &str, s: &str) -> Result<RadianceUnits> {
+    RadianceUnits::parse(s).ok_or_else(|| {
+        Error::format(
+            source,
+            format!(
+                "{key} = `{s}` is not understood; use `{}` (spectral radiance) or `{}` (band-integrated radiance)",
+                RadianceUnits::SpectralPerUm.as_str(),
+                RadianceUnits::BandIntegrated.as_str()
+            ),
+        )
+    })
+}
+
+/// Reads exactly `buf.len()` bytes at `offset`, naming `path` on failure.
+pub(crate) fn read_at(file: &mut File, path: &Path, offset: u64, buf: &mut [u8]) -> Result<()> {
+    file.seek(SeekFrom::Start(offset))
+        .map_err(|e| Error::io(path, e))?;
+    file.read_exact(buf).map_err(|e| Error::io(path, e))
+}
+
+/// Checks that a data file holds exactly `expected` bytes.
+pub(crate) fn check_size(path: &Path, actual: u64, expected: u64, layout: &str) -> Result<()> {
+    if actual < expected {
+        Err(Error::format(
+            path,
+            format!(
+                "data file is truncated: the header says {expected} bytes ({layout}) but the file has {actual} bytes"
+            ),
+        ))
+    } else if actual > expected {
+        Err(Error::format(
+            path,
+            format!(
+                "the header says {expected} bytes ({layout}) but the file has {actual} bytes; check samples, lines, bands, data type and header offset"
+            ),
+        ))
+    } else {
+        Ok(())
+    }
+}
+
+/// How bands are arranged in the data file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Interleave {
+    /// Band sequential: `[band, row, col]`.
+    Bsq,
+    /// Band interleaved by line: `[row, band, col]`.
+    Bil,
+    /// Band interleaved by pixel: `[row, col, band]`.
+    Bip,
+}
+
+/// Spectral axis units of an ENVI `wavelength` list.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum SpectralUnits {
+    /// A wavelength unit, with the factor that converts it to µm.
+    Length(f64),
+    /// Wavenumber, cm⁻¹.
+    Wavenumber,
+}
+
+impl SpectralUnits {
+    fn parse(s: &str) -> Option<Self> {
+        let t: String = s
+            .to_lowercase()
+            .replace(['µ', 'μ'], "u")
+            .chars()
+            .filter(|c| !c.is_whitespace())
+            .collect();
+        match t.as_str() {
+            "micrometers" | "micrometer" | "micrometres" | "micrometre" | "microns" | "micron"
+            | "um" => Some(SpectralUnits::Length(1.0)),
+            "nanometers" | "nanometer" | "nanometres" | "nanometre" | "nm" => {
+                Some(SpectralUnits::Length(1e-3))
+            }
+            "millimeters" | "millimeter" | "millimetres" | "millimetre" | "mm" => {
+                Some(SpectralUnits::Length(1e3))
+            }
+            "meters" | "meter" | "metres" | "metre" | "m" => Some(SpectralUnits::Length(1e6)),
+            "wavenumber" | "wavenumbers" | "cm-1" | "cm^-1" | "1/cm" => {
+                Some(SpectralUnits::Wavenumber)
+            }
+            _ => None,
+        }
+    }
+
+    /// Converts band centres to µm.
+    fn centres_um(self, v: &[f64]) -> Vec<f64> {
+        match self {
+            SpectralUnits::Length(f) => v.iter().map(|x| x * f).collect(),
+            // λ [µm] = 10⁴ / ν [cm⁻¹]  (1 cm = 10⁴ µm).
+            SpectralUnits::Wavenumber => v.iter().map(|nu| 1e4 / nu).collect(),
+        }
+    }
+
+    /// Converts band widths to µm, given the band centres in the file's units.
+    fn widths_um(self, width: &[f64], centre: &[f64]) -> Vec<f64> {
+        match self {
+            SpectralUnits::Length(f) => width.iter().map(|x| x * f).collect(),
+            // |dλ/dν| = 10⁴ / ν², so a narrow band of width Δν at ν spans
+            // Δλ ≈ 10⁴ Δν / ν² µm (first order in Δν/ν).
+            SpectralUnits::Wavenumber => width
+                .iter()
+                .zip(centre)
+                .map(|(dnu, nu)| 1e4 * dnu / (nu * nu))
+                .collect(),
+        }
+    }
+}
+
+/// One `key = value` entry of a header.
+#[derive(Debug, Clone)]
+struct Entry {
+    /// The value, without the braces of a `{…}` value.
+    value: String,
+    /// Line number (1-based) the entry starts on.
+    line: usize,
+}
+
+/// The parsed header: entries by normalised key.
+struct Header {
+    path: PathBuf,
+    entries: HashMap<String, Entry>,
+}
+
+/// Lower-cases a key and collapses white space to single spaces.
+fn normalise_key(k: &str) -> String {
+    k.split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ")
+        .to_lowercase()
+}
+
+impl Header {
+    /// Parses header text; non-fatal oddities are appended to `warnings`.
+    fn parse(path: &Path, text: &str, warnings: &mut Vec<String>) -> Result<Self> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        let mut lines = text.lines().enumerate().peekable();
+        // First non-blank line: the magic word.
+        loop {
+            match lines.next() {
+                None => {
+                    return Err(Error::format(
+                        path,
+                        "empty file: an ENVI header starts with a line `ENVI`",
+                    ))
+                }
+                Some((_, l)) if l.trim().is_empty() => continue,
+                Some((_, l)) if l.trim().eq_ignore_ascii_case("envi") => break,
+                Some((i, l)) => {
+                    return Err(Error::format(
+                        path,
+                        format!(
+                            "not an ENVI header: line {} is `{}` but the first line must be `ENVI`",
+                            i + 1,
+                            l.trim()
+                        ),
+                    ))
+                }
+            }
+        }
+        let mut entries: HashMap<String, Entry> = HashMap::new();
+        while let Some((i, raw)) = lines.next() {
+            let l = raw.trim();
+            if l.is_empty() || l.starts_with(';') {
+                continue;
+            }
+            let Some((k, v)) = l.split_once('=') else {
+                warnings.push(format!(
+                    "{}: line {} ignored (no `key = value`): `{l}`",
+                    path.display(),
+                    i + 1
+                ));
+                continue;
+            };
+            let key = normalise_key(k);
+            let mut value = v.trim().to_string();
+            if let Some(rest) = value.strip_prefix('{') {
+                let mut inner = rest.to_string();
+                loop {
+                    if let Some(end) = inner.find('}') {
+                        inner.truncate(end);
+                        break;
+                    }
+                    match lines.next() {
+                        Some((_, more)) => {
+                            if more.trim_start().starts_with(';') {
+                                continue;
+                            }
+                            inner.push('\n');
+                            inner.push_str(more);
+                        }
+                        None => {
+                            return Err(Error::format(
+                                path,
+                                format!(
+                                    "line {}: the `{{` opened for `{key}` is never closed by `}}`",
+                                    i + 1
+                                ),
+                            ))
+                        }
+                    }
+                }
+                value = inner.trim().to_string();
+            }
+            if entries.contains_key(&key) {
+                warnings.push(format!(
+                    "{}: `{key}` appears more than once; line {} wins",
+                    path.display(),
+                    i + 1
+                ));
+            }
+            entries.insert(key, Entry { value, line: i + 1 });
+        }
+        Ok(Header {
+            path: path.to_path_buf(),
+            entries,
+        })
+    }
+
+    fn get(&self, key: &str) -> Option<&Entry> {
+        self.entries.get(key)
+    }
+
+    fn error(&self, key: &str, e: &Entry, expected: &str) -> Error {
+        Error::format(
+            &self.path,
+            format!(
+                "line {}: `{key} = {}`: expected {expected}",
+                e.line, e.value
+            ),
+        )
+    }
+
+    fn missing(&self, key: &str, example: &str) -> Error {
+        Error::format(
+            &self.path,
+            format!("the header has no `{key}` (add e.g. `{key} = {example}`)"),
+        )
+    }
+
+    /// A required whole number > 0.
+    fn count(&self, key: &str, example: &str) -> Result<usize> {
+        let e = self.get(key).ok_or_else(|| self.missing(key, example))?;
+        match e.value.parse::<usize>() {
+            Ok(n) if n > 0 => Ok(n),
+            _ => Err(self.error(key, e, "a whole number > 0")),
+        }
+    }
+
+    /// An optional whole number ≥ 0.
+    fn opt_u64(&self, key: &str) -> Result<Option<u64>> {
+        self.get(key)
+            .map(|e| {
+                e.value
+                    .parse::<u64>()
+                    .map_err(|_| self.error(key, e, "a whole number >= 0"))
+            })
+            .transpose()
+    }
+
+    /// An optional single number.
+    fn opt_f64(&self, key: &str) -> Result<Option<f64>> {
+        self.get(key)
+            .map(|e| {
+                let v = e.value.trim_start_matches('{').trim_end_matches('}').trim();
+                v.parse::<f64>()
+                    .ok()
+                    .filter(|x| x.is_finite())
+                    .ok_or_else(|| self.error(key, e, "a number"))
+            })
+            .transpose()
+    }
+
+    /// An optional list of numbers separated by commas and/or white space; when `len` is
+    /// given the list must have that many entries.
+    fn opt_list(&self, key: &str, len: Option<usize>) -> Result<Option<Vec<f64>>> {
+        let Some(e) = self.get(key) else {
+            return Ok(None);
+        };
+        let mut out = Vec::new();
+        for tok in e
+            .value
+            .split(|c: char| c == ',' || c.is_whitespace())
+            .filter(|t| !t.is_empty())
+        {
+            match tok.parse::<f64>() {
+                Ok(x) if x.is_finite() => out.push(x),
+                _ => {
+                    return Err(Error::format(
+                        &self.path,
+                        format!(
+                            "line {}: `{key}` entry {} is `{tok}`, which is not a finite number",
+                            e.line,
+                            out.len()
+                        ),
+                    ))
+                }
+            }
+        }
+        if let Some(n) = len {
+            if out.len() != n {
+                return Err(Error::format(
+                    &self.path,
+                    format!(
+                        "line {}: `{key}` has {} values but the header says bands = {n}",
+                        e.line,
+                        out.len()
+                    ),
+                ));
+            }
+        }
+        Ok(Some(out))
+    }
+
+    /// An optional pair `{a, b}`.
+    fn opt_pair(&self, key: &str) -> Result<Option<[f64; 2]>> {
+        match self.opt_list(key, None)? {
+            None => Ok(None),
+            Some(v) if v.len() == 2 => Ok(Some([v[0], v[1]])),
+            Some(v) => Err(Error::format(
+                &self.path,
+                format!(
+                    "`{key}` has {} values; expected two: `{key} = {{x, y}}`",
+                    v.len()
+                ),
+            )),
+        }
+    }
+}
+
+/// Finds a file named `name` in `dir`, trying the exact name first and then any letter
+/// case.
+fn find_file(dir: &Path, name: &str, listing: &mut Option<Vec<PathBuf>>) -> Option<PathBuf> {
+    let exact = dir.join(name);
+    if exact.is_file() {
+        return Some(exact);
+    }
+    let entries = listing.get_or_insert_with(|| {
+        std::fs::read_dir(if dir.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            dir
+        })
+        .map(|rd| rd.filter_map(|e| e.ok().map(|e| e.path())).collect())
+        .unwrap_or_default()
+    });
+    entries
+        .iter()
+        .find(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.eq_ignore_ascii_case(name))
+                && p.is_file()
+        })
+        .map(|p| dir.join(p.file_name().unwrap_or_default()))
+}
+
+/// Returns `(header, data)` for either file of an ENVI pair.
+fn find_pair(path: &Path) -> Result<(PathBuf, PathBuf)> {
+    if !path.is_file() {
+        return Err(Error::io(
+            path,
+            std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+        ));
+    }
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let name = path
+        .file_name()
+        .and_then(|n| n.to_str())
+        .ok_or_else(|| Error::format(path, "the file name is not valid UTF-8"))?;
+    let is_header = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("hdr"));
+    let stem = path
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or(name)
+        .to_string();
+    let mut listing = None;
+    let candidates: Vec<String> = if is_header {
+        std::iter::once(stem.clone())
+            .chain(DATA_EXTENSIONS.iter().map(|e| format!("{stem}.{e}")))
+            .collect()
+    } else if path.extension().is_some() {
+        vec![format!("{name}.hdr"), format!("{stem}.hdr")]
+    } else {
+        vec![format!("{name}.hdr")]
+    };
+    for c in &candidates {
+        if let Some(p) = find_file(dir, c, &mut listing) {
+            return Ok(if is_header {
+                (path.to_path_buf(), p)
+            } else {
+                (p, path.to_path_buf())
+            });
+        }
+    }
+    let what = if is_header { "data file" } else { "header" };
+    Err(Error::format(
+        path,
+        format!(
+            "no ENVI {what} found next to it; tried {} (any letter case) in `{}`",
+            candidates.join(", "),
+            if dir.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                dir
+            }
+            .display()
+        ),
+    ))
+}
+
+/// Reads an ENVI cube one band at a time.
+///
+/// Opening parses and checks the header and the data file's size; each
+/// [`read_band`](CubeReader::read_band) reads only the bytes of that band (one seek for
+/// band-sequential files, one read per row for interleaved ones), converts them to f32
+/// with the header's gain and offset, and checks the plane is physical radiance.
+#[derive(Debug)]
 pub struct EnviReader {
     meta: CubeMeta,
+    header_path: PathBuf,
+    data_path: PathBuf,
+    file: File,
+    header_offset: u64,
+    ty: SampleType,
+    big_endian: bool,
+    interleave: Interleave,
+    /// Bands as stored in the file.
+    file_bands: usize,
+    /// Output band index → stored band index.
+    band_map: Vec<usize>,
+    /// Per stored band `(gain, offset)`, if the header scales the data.
+    scale: Option<Vec<(f64, f64)>>,
+    warnings: Vec<String>,
 }
 
 impl EnviReader {
-    /// Opens a file.
+    /// Opens an ENVI cube from its header (`.hdr`) or its data file, parses the header and
+    /// checks the data file has exactly the size the header implies.
     pub fn open(path: &Path) -> Result<Self> {
-        Err(Error::format(path, "format not available in this build"))
+        let (header_path, data_path) = find_pair(path)?;
+        let bytes = std::fs::read(&header_path).map_err(|e| Error::io(&header_path, e))?;
+        let text = String::from_utf8_lossy(&bytes);
+        let mut warnings = Vec::new();
+        let h = Header::parse(&header_path, &text, &mut warnings)?;
+
+        let cols = h.count("samples", "640")?;
+        let rows = h.count("lines", "480")?;
+        let bands = h.count("bands", "3")?;
+        let header_offset = h.opt_u64("header offset")?.unwrap_or(0);
+
+        let ty = match h.get("data type") {
+            None => return Err(h.missing("data type", "4")),
+            Some(e) => match e.value.parse::<u32>() {
+                Ok(2) => SampleType::I16,
+                Ok(3) => SampleType::I32,
+                Ok(4) => SampleType::F32,
+                Ok(5) => SampleType::F64,
+                Ok(12) => SampleType::U16,
+                Ok(n) => {
+                    let name = match n {
+                        1 => "uint8",
+                        6 => "complex float32",
+                        9 => "complex float64",
+                        13 => "uint32",
+                        14 => "int64",
+                        15 => "uint64",
+                        _ => "unknown",
+                    };
+                    return Err(h.error(
+                        "data type",
+                        e,
+                        &format!("one of 2 (int16), 3 (int32), 4 (float32), 5 (float64), 12 (uint16); data type {n} ({name}) is not supported"),
+                    ));
+                }
+                Err(_) => {
+                    return Err(h.error(
+                        "data type",
+                        e,
+                        "one of 2 (int16), 3 (int32), 4 (float32), 5 (float64), 12 (uint16)",
+                    ))
+                }
+            },
+        };
+
+        let interleave = match h.get("interleave") {
+            None => {
+                warnings.push(format!(
+                    "{}: no `interleave`; assuming bsq (band sequential)",
+                    header_path.display()
+                ));
+                Interleave::Bsq
+            }
+            Some(e) => match e.value.to_ascii_lowercase().as_str() {
+                "bsq" => Interleave::Bsq,
+                "bil" => Interleave::Bil,
+                "bip" => Interleave::Bip,
+                _ => return Err(h.error("interleave", e, "bsq, bil or bip")),
+            },
+        };
+
+        let big_endian = match h.get("byte order") {
+            None => {
+                if ty.size() > 1 {
+                    warnings.push(format!(
+                        "{}: no `byte order`; assuming 0 (little-endian)",
+                        header_path.display()
+                    ));
+                }
+                false
+            }
+            Some(e) => match e.value.as_str() {
+                "0" => false,
+                "1" => true,
+                _ => return Err(h.error("byte order", e, "0 (little-endian) or 1 (big-endian)")),
+            },
+        };
+
+        // Spectral axis.
+        let wl_raw = h.opt_list("wavelength", Some(bands))?.ok_or_else(|| {
+            h.missing(
+                "wavelength",
+                "{8.5, 9.5, 10.5}` with `wavelength units = Micrometers",
+            )
+        })?;
+        let fwhm_raw = h.opt_list("fwhm", Some(bands))?;
+        let units = match h.get("wavelength units") {
+            Some(e) if !e.value.eq_ignore_ascii_case("unknown") => SpectralUnits::parse(&e.value)
+                .ok_or_else(|| {
+                h.error(
+                    "wavelength units",
+                    e,
+                    "Micrometers, Nanometers, Millimeters, Meters or Wavenumber (cm-1)",
+                )
+            })?,
+            _ => {
+                if wl_raw.iter().all(|w| *w < 30.0) {
+                    warnings.push(format!(
+                        "{}: no `wavelength units`; the wavelengths are all below 30, so they are taken as micrometers",
+                        header_path.display()
+                    ));
+                    SpectralUnits::Length(1.0)
+                } else if wl_raw.iter().all(|w| *w > 200.0) {
+                    warnings.push(format!(
+                        "{}: no `wavelength units`; the wavelengths are all above 200, so they are taken as nanometers",
+                        header_path.display()
+                    ));
+                    SpectralUnits::Length(1e-3)
+                } else {
+                    return Err(Error::format(
+                        &header_path,
+                        format!(
+                            "no `wavelength units` and the wavelengths ({} … {}) are neither all below 30 (micrometers) nor all above 200 (nanometers); add `wavelength units = Micrometers`, `Nanometers` or `Wavenumber`",
+                            wl_raw.iter().cloned().fold(f64::INFINITY, f64::min),
+                            wl_raw.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+                        ),
+                    ));
+                }
+            }
+        };
+        if let Some((i, w)) = wl_raw.iter().enumerate().find(|(_, w)| **w <= 0.0) {
+            return Err(Error::format(
+                &header_path,
+                format!("wavelength[{i}] = {w} is not a positive number"),
+            ));
+        }
+        let wl_um = units.centres_um(&wl_raw);
+        let fwhm_um = fwhm_raw.map(|f| units.widths_um(&f, &wl_raw));
+        let BandOrder {
+            wavelength_um,
+            fwhm_um,
+            band_map,
+            reversed,
+        } = order_bands(&header_path, wl_um, fwhm_um)?;
+        if reversed {
+            warnings.push(format!(
+                "{}: wavelengths are stored in decreasing order; bands are handed out in increasing wavelength (band 0 = stored band {})",
+                header_path.display(),
+                bands - 1
+            ));
+        }
+
+        // Scaling.
+        let gains = h.opt_list("data gain values", Some(bands))?;
+        let offsets = h.opt_list("data offset values", Some(bands))?;
+        let scale = match (gains, offsets) {
+            (None, None) => None,
+            (g, o) => Some(
+                (0..bands)
+                    .map(|b| {
+                        (
+                            g.as_ref().map_or(1.0, |g| g[b]),
+                            o.as_ref().map_or(0.0, |o| o[b]),
+                        )
+                    })
+                    .collect(),
+            ),
+        };
+
+        // eoir's own keys.
+        let units_rad = match h.get("eoir radiance units") {
+            Some(e) => parse_units(&header_path, "eoir radiance units", &e.value)?,
+            None => {
+                warnings.push(format!(
+                    "{}: no `eoir radiance units`; the values are taken as spectral radiance, {}",
+                    header_path.display(),
+                    RadianceUnits::SpectralPerUm.as_str()
+                ));
+                RadianceUnits::SpectralPerUm
+            }
+        };
+        let geometry = geometry_from(
+            &header_path,
+            ["`eoir fov deg`", "`eoir ifov rad`", "`eoir range m`"],
+            h.opt_pair("eoir fov deg")?,
+            h.opt_pair("eoir ifov rad")?,
+            h.opt_f64("eoir range m")?,
+            rows,
+            cols,
+        )?;
+
+        let meta = CubeMeta {
+            wavelength_um,
+            fwhm_um,
+            units: units_rad,
+            geometry,
+            rows,
+            cols,
+        };
+        meta.validate(&header_path.display().to_string())?;
+
+        // Size check.
+        let expected = (cols as u64)
+            .checked_mul(rows as u64)
+            .and_then(|n| n.checked_mul(bands as u64))
+            .and_then(|n| n.checked_mul(ty.size() as u64))
+            .and_then(|n| n.checked_add(header_offset))
+            .ok_or_else(|| Error::format(&header_path, "samples × lines × bands is too large"))?;
+        let file = File::open(&data_path).map_err(|e| Error::io(&data_path, e))?;
+        let actual = file.metadata().map_err(|e| Error::io(&data_path, e))?.len();
+        let layout = format!(
+            "header offset {header_offset} + {cols} samples × {rows} lines × {bands} bands × {} bytes",
+            ty.size()
+        );
+        check_size(&data_path, actual, expected, &layout)?;
+
+        Ok(EnviReader {
+            meta,
+            header_path,
+            data_path,
+            file,
+            header_offset,
+            ty,
+            big_endian,
+            interleave,
+            file_bands: bands,
+            band_map,
+            scale,
+            warnings,
+        })
+    }
+
+    /// The header file in use.
+    pub fn header_path(&self) -> &Path {
+        &self.header_path
+    }
+
+    /// The data file in use.
+    pub fn data_path(&self) -> &Path {
+        &self.data_path
     }
 }
 
-impl super::CubeReader for EnviReader {
+impl CubeReader for EnviReader {
     fn meta(&self) -> &CubeMeta {
         &self.meta
     }
-    fn read_band(&mut self, _frame: usize, _band: usize) -> Result<Array2<f32>> {
-        Err(Error::OutOfRange("format not available in this build".into()))
+
+    fn read_band(&mut self, frame: usize, band: usize) -> Result<Array2<f32>> {
+        if frame != 0 {
+            return Err(Error::OutOfRange(format!(
+                "{}: frame {frame} requested but an ENVI cube has one frame (0)",
+                self.data_path.display()
+            )));
+        }
+        if band >= self.meta.bands() {
+            return Err(Error::OutOfRange(format!(
+                "{}: band {band} requested but the cube has bands 0..{}",
+                self.data_path.display(),
+                self.meta.bands()
+            )));
+        }
+        let fb = self.band_map[band];
+        let (rows, cols, nb) = (self.meta.rows, self.meta.cols, self.file_bands);
+        let bps = self.ty.size();
+        let scale = self.scale.as_ref().map(|s| s[fb]);
+        let mut values = Vec::with_capacity(rows * cols);
+        match self.interleave {
+            Interleave::Bsq => {
+                let plane = rows * cols * bps;
+                let mut buf = vec![0u8; plane];
+                let off = self.header_offset + (fb * plane) as u64;
+                read_at(&mut self.file, &self.data_path, off, &mut buf)?;
+                decode_into(&buf, self.ty, self.big_endian, scale, &mut values);
+            }
+            Interleave::Bil => {
+                let line = cols * bps;
+                let mut buf = vec![0u8; line];
+                for r in 0..rows {
+                    let off = self.header_offset + ((r * nb + fb) * line) as u64;
+                    read_at(&mut self.file, &self.data_path, off, &mut buf)?;
+                    decode_into(&buf, self.ty, self.big_endian, scale, &mut values);
+                }
+            }
+            Interleave::Bip => {
+                // One image row holds every band of every pixel; read it whole (sequential
+                // I/O) and pick this band's samples out of it.
+                let line = cols * nb * bps;
+                let mut buf = vec![0u8; line];
+                for r in 0..rows {
+                    let off = self.header_offset + (r * line) as u64;
+                    read_at(&mut self.file, &self.data_path, off, &mut buf)?;
+                    let (g, o) = scale.unwrap_or((1.0, 0.0));
+                    values.extend(buf.chunks_exact(nb * bps).map(|px| {
+                        let raw = self.ty.decode(&px[fb * bps..], self.big_endian);
+                        if scale.is_some() {
+                            (g * raw + o) as f32
+                        } else {
+                            raw as f32
+                        }
+                    }));
+                }
+            }
+        }
+        let plane = Array2::from_shape_vec((rows, cols), values)
+            .map_err(|e| Error::format(&self.data_path, e.to_string()))?;
+        check_radiance_plane(
+            &self.data_path.display().to_string(),
+            band,
+            self.meta.wavelength_um[band],
+            plane.view(),
+        )?;
+        Ok(plane)
+    }
+
+    fn warnings(&self) -> Vec<String> {
+        self.warnings.clone()
     }
 }
 
-/// Writes a cube.
-pub fn write(path: &Path, _cube: &Cube) -> Result<()> {
-    Err(Error::format(path, "format not available in this build"))
+/// The `(header, data)` paths [`write()`] uses for `path`: the header is `<stem>.hdr`, the
+/// data file is `path` itself, or `<stem>.img` when `path` is the header.
+pub fn output_paths(path: &Path) -> (PathBuf, PathBuf) {
+    let is_header = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("hdr"));
+    if is_header {
+        (path.to_path_buf(), path.with_extension("img"))
+    } else {
+        (path.with_extension("hdr"), path.to_path_buf())
+    }
+}
+
+/// Formats numbers as an ENVI `{…}` list (shortest text that reads back to the same f64).
+fn list(v: &[f64]) -> String {
+    let items: Vec<String> = v.iter().map(|x| format!("{x}")).collect();
+    format!("{{{}}}", items.join(", "))
+}
+
+/// Writes a cube as ENVI: float32, little-endian, band sequential, header with
+/// wavelengths in µm, fwhm and eoir's keys (see the module documentation for file names).
+pub fn write(path: &Path, cube: &Cube) -> Result<()> {
+    let (header_path, data_path) = output_paths(path);
+    let (b, r, c) = cube.data.dim();
+    let meta = &cube.meta;
+    if (b, r, c) != (meta.bands(), meta.rows, meta.cols) {
+        return Err(Error::param(
+            "cube shape",
+            format!("[{b}, {r}, {c}]"),
+            format!(
+                "[{}, {}, {}] as the metadata says",
+                meta.bands(),
+                meta.rows,
+                meta.cols
+            ),
+        ));
+    }
+    meta.validate(&path.display().to_string())?;
+
+    let mut h = String::from("ENVI\n");
+    h.push_str("description = {eoir spectral radiance cube}\n");
+    h.push_str(&format!("samples = {c}\nlines = {r}\nbands = {b}\n"));
+    h.push_str("header offset = 0\nfile type = ENVI Standard\ndata type = 4\n");
+    h.push_str("interleave = bsq\nbyte order = 0\n");
+    h.push_str("wavelength units = Micrometers\n");
+    h.push_str(&format!("wavelength = {}\n", list(&meta.wavelength_um)));
+    if let Some(f) = &meta.fwhm_um {
+        h.push_str(&format!("fwhm = {}\n", list(f)));
+    }
+    h.push_str(&format!("eoir radiance units = {}\n", meta.units.as_str()));
+    if let Some(g) = &meta.geometry {
+        h.push_str(&format!(
+            "eoir fov deg = {}\n",
+            list(&[g.fov_x_deg, g.fov_y_deg])
+        ));
+        if let Some(rm) = g.range_m {
+            h.push_str(&format!("eoir range m = {rm}\n"));
+        }
+    }
+
+    atomic_write(&data_path, |w| {
+        let mut buf = Vec::with_capacity(r * c * 4);
+        for plane in cube.data.outer_iter() {
+            buf.clear();
+            for v in plane.iter() {
+                buf.extend_from_slice(&v.to_le_bytes());
+            }
+            write_all(w, &buf, &data_path)?;
+        }
+        Ok(())
+    })?;
+    let res = atomic_write(&header_path, |w| write_all(w, h.as_bytes(), &header_path));
+    if res.is_err() {
+        // A data file without its header is useless; do not leave it behind.
+        let _ = std::fs::remove_file(&data_path);
+    }
+    res
 }

@@ -1,1 +1,308 @@
-//! Single-plane product writers (being written in a parallel branch).
+//! Single-plane product writers (and the readers tests and tools need): 16-bit grey and
+//! 8-bit RGB PNG, 16-bit and f32 grey TIFF, one-channel f32 OpenEXR, and animated 8-bit
+//! grey PNG (APNG) previews.
+//!
+//! Arrays are `[row, col]` (`[row, col, channel]` for RGB); row 0 is the top of the
+//! image. Every writer goes through [`atomic_write`]: on any error
+//! the target is left untouched and no temporary file remains.
+
+use std::fs::File;
+use std::io::BufReader;
+use std::path::Path;
+
+use ndarray::{Array2, ArrayView2, ArrayView3};
+
+use crate::error::{Error, Result};
+
+use super::atomic_write;
+
+/// Checks an image size and converts it to the `(width, height)` the encoders take.
+fn dims(path: &Path, rows: usize, cols: usize) -> Result<(u32, u32)> {
+    if rows == 0 || cols == 0 {
+        return Err(Error::format(
+            path,
+            format!("cannot write an empty image ({rows} rows × {cols} columns)"),
+        ));
+    }
+    match (u32::try_from(cols), u32::try_from(rows)) {
+        (Ok(w), Ok(h)) => Ok((w, h)),
+        _ => Err(Error::format(
+            path,
+            format!("image of {rows} × {cols} pixels is too large for the format"),
+        )),
+    }
+}
+
+fn png_err(path: &Path, e: png::EncodingError) -> Error {
+    match e {
+        png::EncodingError::IoError(io) => Error::io(path, io),
+        other => Error::format(path, format!("PNG encoding failed: {other}")),
+    }
+}
+
+fn png_dec_err(path: &Path, e: png::DecodingError) -> Error {
+    match e {
+        png::DecodingError::IoError(io) => Error::io(path, io),
+        other => Error::format(path, format!("cannot decode PNG: {other}")),
+    }
+}
+
+fn tiff_err(path: &Path, e: tiff::TiffError) -> Error {
+    match e {
+        tiff::TiffError::IoError(io) => Error::io(path, io),
+        other => Error::format(path, format!("TIFF: {other}")),
+    }
+}
+
+/// Writes a PNG with the given colour type and depth from packed sample bytes.
+fn write_png(
+    path: &Path,
+    (w, h): (u32, u32),
+    color: png::ColorType,
+    depth: png::BitDepth,
+    bytes: &[u8],
+) -> Result<()> {
+    atomic_write(path, |out| {
+        let mut enc = png::Encoder::new(&mut *out, w, h);
+        enc.set_color(color);
+        enc.set_depth(depth);
+        let mut writer = enc.write_header().map_err(|e| png_err(path, e))?;
+        writer
+            .write_image_data(bytes)
+            .map_err(|e| png_err(path, e))?;
+        writer.finish().map_err(|e| png_err(path, e))
+    })
+}
+
+/// Writes a 16-bit greyscale PNG (`[row, col]`).
+pub fn write_png_u16(path: &Path, image: ArrayView2<u16>) -> Result<()> {
+    let (rows, cols) = image.dim();
+    let size = dims(path, rows, cols)?;
+    // PNG stores 16-bit samples big-endian.
+    let bytes: Vec<u8> = image.iter().flat_map(|v| v.to_be_bytes()).collect();
+    write_png(
+        path,
+        size,
+        png::ColorType::Grayscale,
+        png::BitDepth::Sixteen,
+        &bytes,
+    )
+}
+
+/// Writes an 8-bit RGB PNG from `[row, col, 3]`.
+pub fn write_png_rgb8(path: &Path, rgb: ArrayView3<u8>) -> Result<()> {
+    let (rows, cols, ch) = rgb.dim();
+    if ch != 3 {
+        return Err(Error::param(
+            "rgb image shape",
+            format!("[{rows}, {cols}, {ch}]"),
+            "[rows, cols, 3]",
+        ));
+    }
+    let size = dims(path, rows, cols)?;
+    let bytes: Vec<u8> = rgb.iter().copied().collect();
+    write_png(
+        path,
+        size,
+        png::ColorType::Rgb,
+        png::BitDepth::Eight,
+        &bytes,
+    )
+}
+
+/// Writes a 16-bit greyscale TIFF (uncompressed).
+pub fn write_tiff_u16(path: &Path, image: ArrayView2<u16>) -> Result<()> {
+    let (rows, cols) = image.dim();
+    let (w, h) = dims(path, rows, cols)?;
+    let data: Vec<u16> = image.iter().copied().collect();
+    atomic_write(path, |out| {
+        let mut enc = tiff::encoder::TiffEncoder::new(&mut *out).map_err(|e| tiff_err(path, e))?;
+        enc.write_image::<tiff::encoder::colortype::Gray16>(w, h, &data)
+            .map_err(|e| tiff_err(path, e))
+    })
+}
+
+/// Writes a 32-bit float greyscale TIFF (uncompressed, IEEE sample format).
+pub fn write_tiff_f32(path: &Path, image: ArrayView2<f32>) -> Result<()> {
+    let (rows, cols) = image.dim();
+    let (w, h) = dims(path, rows, cols)?;
+    let data: Vec<f32> = image.iter().copied().collect();
+    atomic_write(path, |out| {
+        let mut enc = tiff::encoder::TiffEncoder::new(&mut *out).map_err(|e| tiff_err(path, e))?;
+        enc.write_image::<tiff::encoder::colortype::Gray32Float>(w, h, &data)
+            .map_err(|e| tiff_err(path, e))
+    })
+}
+
+/// Writes a single-channel f32 OpenEXR image (lossless compression) whose channel is
+/// called `channel` (e.g. `"Y"`, `"radiance"`, `"T"`).
+pub fn write_exr_f32(path: &Path, image: ArrayView2<f32>, channel: &str) -> Result<()> {
+    use exr::prelude::{
+        AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, SmallVec,
+        WritableImage,
+    };
+    let (rows, cols) = image.dim();
+    dims(path, rows, cols)?;
+    if channel.is_empty() || channel.starts_with('.') || channel.ends_with('.') {
+        return Err(Error::param(
+            "EXR channel name",
+            format!("`{channel}`"),
+            "a non-empty name not starting or ending with `.`",
+        ));
+    }
+    let data: Vec<f32> = image.iter().copied().collect();
+    let ch = AnyChannel::new(channel, FlatSamples::F32(data));
+    let layer = Layer::new(
+        (cols, rows),
+        LayerAttributes::default(),
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(SmallVec::from_vec(vec![ch])),
+    );
+    let img = Image::from_layer(layer);
+    atomic_write(path, |out| {
+        img.write().to_buffered(&mut *out).map_err(|e| match e {
+            exr::error::Error::Io(io) => Error::io(path, io),
+            other => Error::format(path, format!("OpenEXR encoding failed: {other}")),
+        })
+    })
+}
+
+/// Opens a TIFF and decodes its first image, checking it is single-channel.
+fn read_tiff(path: &Path, want: &str) -> Result<(usize, usize, tiff::decoder::DecodingResult)> {
+    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut dec = tiff::decoder::Decoder::new(BufReader::new(file))
+        .map_err(|e| tiff_err(path, e))?
+        .with_limits(tiff::decoder::Limits::unlimited());
+    let (w, h) = dec.dimensions().map_err(|e| tiff_err(path, e))?;
+    let ct = dec.colortype().map_err(|e| tiff_err(path, e))?;
+    if !matches!(ct, tiff::ColorType::Gray(_)) {
+        return Err(Error::format(
+            path,
+            format!("expected a single-channel {want} TIFF, found colour type {ct:?}"),
+        ));
+    }
+    let data = dec.read_image().map_err(|e| tiff_err(path, e))?;
+    Ok((h as usize, w as usize, data))
+}
+
+fn to_array<T>(path: &Path, rows: usize, cols: usize, v: Vec<T>) -> Result<Array2<T>> {
+    Array2::from_shape_vec((rows, cols), v).map_err(|e| {
+        Error::format(
+            path,
+            format!("image data does not fill {rows} × {cols}: {e}"),
+        )
+    })
+}
+
+/// Reads a 16-bit greyscale TIFF.
+pub fn read_tiff_u16(path: &Path) -> Result<Array2<u16>> {
+    match read_tiff(path, "16-bit unsigned")? {
+        (r, c, tiff::decoder::DecodingResult::U16(v)) => to_array(path, r, c, v),
+        (_, _, other) => Err(Error::format(
+            path,
+            format!(
+                "expected 16-bit unsigned samples, found {}",
+                tiff_kind(&other)
+            ),
+        )),
+    }
+}
+
+/// Reads a 32-bit float greyscale TIFF.
+pub fn read_tiff_f32(path: &Path) -> Result<Array2<f32>> {
+    match read_tiff(path, "32-bit float")? {
+        (r, c, tiff::decoder::DecodingResult::F32(v)) => to_array(path, r, c, v),
+        (_, _, other) => Err(Error::format(
+            path,
+            format!("expected 32-bit float samples, found {}", tiff_kind(&other)),
+        )),
+    }
+}
+
+fn tiff_kind(d: &tiff::decoder::DecodingResult) -> &'static str {
+    use tiff::decoder::DecodingResult as D;
+    match d {
+        D::U8(_) => "8-bit unsigned",
+        D::U16(_) => "16-bit unsigned",
+        D::U32(_) => "32-bit unsigned",
+        D::U64(_) => "64-bit unsigned",
+        D::F16(_) => "16-bit float",
+        D::F32(_) => "32-bit float",
+        D::F64(_) => "64-bit float",
+        D::I8(_) => "8-bit signed",
+        D::I16(_) => "16-bit signed",
+        D::I32(_) => "32-bit signed",
+        D::I64(_) => "64-bit signed",
+    }
+}
+
+/// Reads a 16-bit greyscale PNG.
+pub fn read_png_u16(path: &Path) -> Result<Array2<u16>> {
+    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut reader = png::Decoder::new(BufReader::new(file))
+        .read_info()
+        .map_err(|e| png_dec_err(path, e))?;
+    let (ct, depth) = {
+        let info = reader.info();
+        (info.color_type, info.bit_depth)
+    };
+    if ct != png::ColorType::Grayscale || depth != png::BitDepth::Sixteen {
+        return Err(Error::format(
+            path,
+            format!("expected a 16-bit greyscale PNG, found {ct:?} at {depth:?}"),
+        ));
+    }
+    let size = reader
+        .output_buffer_size()
+        .ok_or_else(|| Error::format(path, "PNG image is too large"))?;
+    let mut buf = vec![0u8; size];
+    let out = reader
+        .next_frame(&mut buf)
+        .map_err(|e| png_dec_err(path, e))?;
+    let (w, h) = (out.width as usize, out.height as usize);
+    let v: Vec<u16> = buf[..out.buffer_size()]
+        .chunks_exact(2)
+        .map(|b| u16::from_be_bytes([b[0], b[1]]))
+        .collect();
+    to_array(path, h, w, v)
+}
+
+/// Writes an animated preview of 8-bit grey frames (APNG via the png crate's animation
+/// support), `delay_ms` between frames, looping forever.
+pub fn write_apng_gray8(path: &Path, frames: &[Array2<u8>], delay_ms: u16) -> Result<()> {
+    let Some(first) = frames.first() else {
+        return Err(Error::param("frames", "none", "at least one frame"));
+    };
+    let (rows, cols) = first.dim();
+    let (w, h) = dims(path, rows, cols)?;
+    if let Some((i, f)) = frames
+        .iter()
+        .enumerate()
+        .find(|(_, f)| f.dim() != (rows, cols))
+    {
+        return Err(Error::param(
+            format!("frames[{i}] shape"),
+            format!("{:?}", f.dim()),
+            format!("({rows}, {cols}) like frame 0"),
+        ));
+    }
+    let n = u32::try_from(frames.len())
+        .map_err(|_| Error::param("frames", frames.len(), "at most 2^32 - 1 frames"))?;
+    atomic_write(path, |out| {
+        let mut enc = png::Encoder::new(&mut *out, w, h);
+        enc.set_color(png::ColorType::Grayscale);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_animated(n, 0).map_err(|e| png_err(path, e))?;
+        // Delay = numerator / denominator seconds.
+        enc.set_frame_delay(delay_ms, 1000)
+            .map_err(|e| png_err(path, e))?;
+        let mut writer = enc.write_header().map_err(|e| png_err(path, e))?;
+        for f in frames {
+            let bytes: Vec<u8> = f.iter().copied().collect();
+            writer
+                .write_image_data(&bytes)
+                .map_err(|e| png_err(path, e))?;
+        }
+        writer.finish().map_err(|e| png_err(path, e))
+    })
+}

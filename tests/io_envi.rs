@@ -1,0 +1,750 @@
+//! ENVI reader/writer tests. Files "from other tools" are built byte by byte here from the
+//! ENVI layout definitions (BSQ = [band,row,col], BIL = [row,band,col], BIP =
+//! [row,col,band]), so the truth is the layout, not eoir's own writer.
+
+use std::path::{Path, PathBuf};
+
+use eoir::io::envi::{self, EnviReader};
+use eoir::io::{self, CubeReader};
+use eoir::scene::{Cube, CubeMeta, Geometry, RadianceUnits};
+use ndarray::Array3;
+
+/// SplitMix64: a fixed-seed source of test values.
+struct Mix(u64);
+impl Mix {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 100).
+    fn f32(&mut self) -> f32 {
+        (self.next() >> 40) as f32 / (1u64 << 24) as f32 * 100.0
+    }
+}
+
+fn test_cube(bands: usize, rows: usize, cols: usize, seed: u64) -> Cube {
+    let mut m = Mix(seed);
+    let data = Array3::from_shape_simple_fn((bands, rows, cols), || m.f32());
+    let meta = CubeMeta {
+        wavelength_um: (0..bands).map(|b| 3.0 + 0.37 * b as f64).collect(),
+        fwhm_um: Some((0..bands).map(|b| 0.1 + 0.013 * b as f64).collect()),
+        units: RadianceUnits::BandIntegrated,
+        geometry: Some(Geometry {
+            fov_x_deg: 12.345678901234,
+            fov_y_deg: 9.87654321,
+            range_m: Some(1234.5),
+        }),
+        rows,
+        cols,
+    };
+    Cube::new(data, meta).unwrap()
+}
+
+/// The value every hand-built file stores at (band, row, col): exact in f32, i16, u16, i32.
+fn truth(b: usize, r: usize, c: usize) -> f64 {
+    (1000 * b + 10 * r + c) as f64
+}
+
+#[derive(Clone, Copy)]
+enum Layout {
+    Bsq,
+    Bil,
+    Bip,
+}
+
+/// Stored band order for a layout, via the layout's own index formula.
+fn index(l: Layout, (nb, nr, nc): (usize, usize, usize), b: usize, r: usize, c: usize) -> usize {
+    match l {
+        Layout::Bsq => (b * nr + r) * nc + c,
+        Layout::Bil => (r * nb + b) * nc + c,
+        Layout::Bip => (r * nc + c) * nb + b,
+    }
+}
+
+/// Packs stored values (one per element, already in stored band order) into bytes.
+fn pack(values: &[f64], data_type: u32, big_endian: bool) -> Vec<u8> {
+    let mut out = Vec::new();
+    for &v in values {
+        let bytes: Vec<u8> = match (data_type, big_endian) {
+            (2, false) => (v as i16).to_le_bytes().to_vec(),
+            (2, true) => (v as i16).to_be_bytes().to_vec(),
+            (3, false) => (v as i32).to_le_bytes().to_vec(),
+            (3, true) => (v as i32).to_be_bytes().to_vec(),
+            (4, false) => (v as f32).to_le_bytes().to_vec(),
+            (4, true) => (v as f32).to_be_bytes().to_vec(),
+            (5, false) => v.to_le_bytes().to_vec(),
+            (5, true) => v.to_be_bytes().to_vec(),
+            (12, false) => (v as u16).to_le_bytes().to_vec(),
+            (12, true) => (v as u16).to_be_bytes().to_vec(),
+            _ => panic!("test packs types 2, 3, 4, 5, 12"),
+        };
+        out.extend(bytes);
+    }
+    out
+}
+
+/// Stored values of a `(nb, nr, nc)` cube in `layout`, from `f(b, r, c)`.
+fn arrange(
+    l: Layout,
+    dims: (usize, usize, usize),
+    f: impl Fn(usize, usize, usize) -> f64,
+) -> Vec<f64> {
+    let (nb, nr, nc) = dims;
+    let mut v = vec![0.0; nb * nr * nc];
+    for b in 0..nb {
+        for r in 0..nr {
+            for c in 0..nc {
+                v[index(l, dims, b, r, c)] = f(b, r, c);
+            }
+        }
+    }
+    v
+}
+
+fn write(path: &Path, bytes: impl AsRef<[u8]>) {
+    std::fs::write(path, bytes).unwrap();
+}
+
+fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+fn open_err(path: &Path) -> String {
+    match EnviReader::open(path) {
+        Ok(_) => panic!("{} opened but should not", path.display()),
+        Err(e) => e.to_string(),
+    }
+}
+
+/// A minimal header for a float32 cube; `extra` lines are appended.
+fn header(dims: (usize, usize, usize), data_type: u32, interleave: &str, extra: &str) -> String {
+    let (nb, nr, nc) = dims;
+    let wl: Vec<String> = (0..nb).map(|b| format!("{}", 8 + b)).collect();
+    format!(
+        "ENVI\nsamples = {nc}\nlines = {nr}\nbands = {nb}\nheader offset = 0\ndata type = {data_type}\ninterleave = {interleave}\nbyte order = 0\nwavelength units = Micrometers\nwavelength = {{{}}}\neoir radiance units = W m-2 sr-1 um-1\n{extra}",
+        wl.join(", ")
+    )
+}
+
+#[test]
+fn round_trip_is_bit_exact_and_layout_is_bsq_f32_le() {
+    let dir = tempfile::tempdir().unwrap();
+    let cube = test_cube(4, 5, 7, 1);
+    let img = dir.path().join("cube.img");
+    io::write_cube(&img, &cube).unwrap();
+    assert_eq!(names(dir.path()), ["cube.hdr", "cube.img"]);
+
+    // The data file is exactly BSQ float32 little-endian (the ENVI definition).
+    let bytes = std::fs::read(&img).unwrap();
+    assert_eq!(bytes.len(), 4 * 5 * 7 * 4);
+    for ((b, r, c), v) in cube.data.indexed_iter() {
+        let i = 4 * ((b * 5 + r) * 7 + c);
+        assert_eq!(bytes[i..i + 4], v.to_le_bytes());
+    }
+
+    // Read back through both files of the pair.
+    for p in [dir.path().join("cube.hdr"), img.clone()] {
+        let back = io::read_cube(&p).unwrap();
+        assert_eq!(back.meta, cube.meta);
+        assert!(back
+            .data
+            .iter()
+            .zip(cube.data.iter())
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+        let r = EnviReader::open(&p).unwrap();
+        assert!(r.warnings().is_empty(), "{:?}", r.warnings());
+        assert_eq!(r.frames(), 1);
+    }
+
+    // Writing to the header name puts the data in <stem>.img.
+    let dir2 = tempfile::tempdir().unwrap();
+    envi::write(&dir2.path().join("x.hdr"), &cube).unwrap();
+    assert_eq!(names(dir2.path()), ["x.hdr", "x.img"]);
+    // A .bsq data name keeps its extension, header is <stem>.hdr.
+    envi::write(&dir2.path().join("y.bsq"), &cube).unwrap();
+    assert_eq!(names(dir2.path()), ["x.hdr", "x.img", "y.bsq", "y.hdr"]);
+    assert_eq!(io::read_cube(&dir2.path().join("y.hdr")).unwrap(), cube);
+}
+
+#[test]
+fn bil_and_bip_match_bsq_band_by_band() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = (3, 4, 5);
+    for (layout, name, ty) in [
+        (Layout::Bsq, "bsq", 4),
+        (Layout::Bil, "bil", 4),
+        (Layout::Bip, "bip", 4),
+        (Layout::Bil, "bil", 3),
+        (Layout::Bip, "bip", 3),
+    ] {
+        let stem = format!("{name}{ty}");
+        write(
+            &dir.path().join(format!("{stem}.hdr")),
+            header(dims, ty, name, ""),
+        );
+        write(
+            &dir.path().join(format!("{stem}.{name}")),
+            pack(&arrange(layout, dims, truth), ty, false),
+        );
+        let mut r = EnviReader::open(&dir.path().join(format!("{stem}.hdr"))).unwrap();
+        // Read bands out of order to exercise the seeks.
+        for b in [2, 0, 1] {
+            let plane = r.read_band(0, b).unwrap();
+            for ((row, col), v) in plane.indexed_iter() {
+                assert_eq!(
+                    f64::from(*v),
+                    truth(b, row, col),
+                    "{stem} band {b} ({row},{col})"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn big_endian_int16_float32_float64() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = (2, 3, 4);
+    for ty in [2u32, 4, 5] {
+        let h = header(dims, ty, "bip", "").replace("byte order = 0", "byte order = 1");
+        write(&dir.path().join(format!("be{ty}.hdr")), h);
+        write(
+            &dir.path().join(format!("be{ty}.dat")),
+            pack(&arrange(Layout::Bip, dims, truth), ty, true),
+        );
+        let cube = io::read_cube(&dir.path().join(format!("be{ty}.dat"))).unwrap();
+        for ((b, r, c), v) in cube.data.indexed_iter() {
+            assert_eq!(f64::from(*v), truth(b, r, c), "type {ty}");
+        }
+    }
+}
+
+#[test]
+fn nanometre_and_millimetre_units_are_converted() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = (3, 2, 2);
+    let data = pack(&arrange(Layout::Bsq, dims, truth), 4, false);
+    for (units, wl, fw, want_wl, want_fw) in [
+        (
+            "Nanometers",
+            "450, 550, 650",
+            "10, 20, 30",
+            [0.45, 0.55, 0.65],
+            [0.01, 0.02, 0.03],
+        ),
+        (
+            "nm",
+            "450, 550, 650",
+            "10, 20, 30",
+            [0.45, 0.55, 0.65],
+            [0.01, 0.02, 0.03],
+        ),
+        (
+            "micron",
+            "4.5, 5.5, 6.5",
+            "0.1, 0.2, 0.3",
+            [4.5, 5.5, 6.5],
+            [0.1, 0.2, 0.3],
+        ),
+        (
+            "Millimeters",
+            "0.008, 0.009, 0.01",
+            "0.001, 0.001, 0.001",
+            [8.0, 9.0, 10.0],
+            [1.0, 1.0, 1.0],
+        ),
+    ] {
+        let h = header(dims, 4, "bsq", &format!("fwhm = {{{fw}}}\n"))
+            .replace(
+                "wavelength units = Micrometers",
+                &format!("wavelength units = {units}"),
+            )
+            .replace("wavelength = {8, 9, 10}", &format!("wavelength = {{{wl}}}"));
+        write(&dir.path().join("n.hdr"), h);
+        write(&dir.path().join("n.img"), &data);
+        let r = EnviReader::open(&dir.path().join("n.hdr")).unwrap();
+        let m = r.meta();
+        for i in 0..3 {
+            assert!(
+                (m.wavelength_um[i] - want_wl[i]).abs() < 1e-12,
+                "{units}: {:?}",
+                m.wavelength_um
+            );
+            let f = m.fwhm_um.as_ref().unwrap()[i];
+            assert!((f - want_fw[i]).abs() < 1e-12, "{units}: {:?}", m.fwhm_um);
+        }
+    }
+}
+
+#[test]
+fn wavenumber_grid_is_converted_and_reversed() {
+    let dir = tempfile::tempdir().unwrap();
+    // Increasing wavenumbers = decreasing wavelengths: 12.5, 10, 8 µm.
+    let nu = [800.0, 1000.0, 1250.0];
+    let dnu = 4.0;
+    let dims = (3, 2, 3);
+    let h = header(dims, 4, "bil", "fwhm = {4, 4, 4}\n")
+        .replace(
+            "wavelength units = Micrometers",
+            "wavelength units = Wavenumber",
+        )
+        .replace("wavelength = {8, 9, 10}", "wavelength = {800, 1000, 1250}");
+    write(&dir.path().join("w.hdr"), h);
+    write(
+        &dir.path().join("w.img"),
+        pack(&arrange(Layout::Bil, dims, truth), 4, false),
+    );
+    let mut r = EnviReader::open(&dir.path().join("w.img")).unwrap();
+    let m = r.meta().clone();
+    assert_eq!(m.wavelength_um, vec![8.0, 10.0, 12.5]);
+    for (i, f) in m.fwhm_um.as_ref().unwrap().iter().enumerate() {
+        // Exact width of the interval [ν - Δν/2, ν + Δν/2] in µm; the first-order
+        // conversion differs from it by a relative (Δν / 2ν)² ≈ 6e-6.
+        let n = nu[2 - i];
+        let exact = 1e4 / (n - dnu / 2.0) - 1e4 / (n + dnu / 2.0);
+        assert!(
+            ((f - exact) / exact).abs() < 1e-5,
+            "band {i}: {f} vs {exact}"
+        );
+    }
+    assert!(r.warnings().iter().any(|w| w.contains("decreasing")));
+    // Band 0 (8 µm) is the stored band 2.
+    for b in 0..3 {
+        let plane = r.read_band(0, b).unwrap();
+        for ((row, col), v) in plane.indexed_iter() {
+            assert_eq!(f64::from(*v), truth(2 - b, row, col));
+        }
+    }
+}
+
+#[test]
+fn int16_and_uint16_with_gain_and_offset() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = (2, 3, 3);
+    // Stored integers, including negative int16 counts that the offset lifts above zero
+    // and uint16 values above i16::MAX.
+    let raw16 = |b: usize, r: usize, c: usize| -300.0 + (b * 100 + r * 10 + c) as f64;
+    let rawu = |b: usize, r: usize, c: usize| 40000.0 + (b * 1000 + r * 100 + c) as f64;
+    for (ty, raw) in [
+        (2u32, &raw16 as &dyn Fn(usize, usize, usize) -> f64),
+        (12, &rawu),
+    ] {
+        let h = header(
+            dims,
+            ty,
+            "bsq",
+            "data gain values = {0.01, 0.5}\ndata offset values = {5, 200.25}\n",
+        );
+        write(&dir.path().join(format!("g{ty}.hdr")), h);
+        write(
+            &dir.path().join(format!("g{ty}.raw")),
+            pack(&arrange(Layout::Bsq, dims, raw), ty, false),
+        );
+        let cube = io::read_cube(&dir.path().join(format!("g{ty}.hdr"))).unwrap();
+        let gain = [0.01, 0.5];
+        let off = [5.0, 200.25];
+        for ((b, r, c), v) in cube.data.indexed_iter() {
+            let want = gain[b] * raw(b, r, c) + off[b];
+            assert!(
+                (f64::from(*v) - want).abs() <= want * 1e-7,
+                "type {ty} ({b},{r},{c}): {v} vs {want}"
+            );
+        }
+    }
+}
+
+#[test]
+fn wrapped_braces_comments_messy_keys_offset_and_letter_case() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = (3, 2, 4);
+    let h = "ENVI\n\
+; written by another tool\n\
+description = {A cube whose description\n  runs over = two lines}\n\
+Samples   =  4\n\
+LINES=2\n\
+  bands = 3\n\
+Header   Offset = 16\n\
+data type = 4\n\
+Interleave = BSQ\n\
+byte order = 0\n\
+; the spectral axis\n\
+Wavelength  Units = Micrometers\n\
+wavelength = {\n 8.0,\n ; in-list comment\n 9.0,\n 10.0 }\n\
+fwhm = {0.5,0.5,\n0.5}\n\
+data ignore value = -9999\n\
+EOIR Radiance Units = {W m-2 sr-1}\n\
+eoir  fov deg = {20,\n 10}\n";
+    write(&dir.path().join("Mixed.HDR"), h);
+    let mut bytes = vec![0xAB; 16];
+    bytes.extend(pack(&arrange(Layout::Bsq, dims, truth), 4, false));
+    write(&dir.path().join("Mixed.IMG"), bytes);
+    let cube = io::read_cube(&dir.path().join("Mixed.HDR")).unwrap();
+    assert_eq!(cube.meta.wavelength_um, vec![8.0, 9.0, 10.0]);
+    assert_eq!(cube.meta.fwhm_um, Some(vec![0.5; 3]));
+    assert_eq!(cube.meta.units, RadianceUnits::BandIntegrated);
+    let g = cube.meta.geometry.unwrap();
+    assert_eq!((g.fov_x_deg, g.fov_y_deg, g.range_m), (20.0, 10.0, None));
+    for ((b, r, c), v) in cube.data.indexed_iter() {
+        assert_eq!(f64::from(*v), truth(b, r, c));
+    }
+    // And from the data file, whose header differs in letter case.
+    assert_eq!(io::read_cube(&dir.path().join("Mixed.IMG")).unwrap(), cube);
+}
+
+#[test]
+fn missing_wavelength_units_are_inferred_with_a_warning_or_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = (2, 2, 2);
+    let data = pack(&arrange(Layout::Bsq, dims, truth), 4, false);
+    for (wl, want) in [
+        ("3.5, 4.5", Some([3.5, 4.5])),
+        ("800, 900", Some([0.8, 0.9])),
+        ("50, 100", None),
+    ] {
+        let h = header(dims, 4, "bsq", "")
+            .replace("wavelength units = Micrometers\n", "")
+            .replace("wavelength = {8, 9}", &format!("wavelength = {{{wl}}}"));
+        write(&dir.path().join("u.hdr"), h);
+        write(&dir.path().join("u.img"), &data);
+        match want {
+            Some(w) => {
+                let r = EnviReader::open(&dir.path().join("u.hdr")).unwrap();
+                assert!((r.meta().wavelength_um[0] - w[0]).abs() < 1e-12);
+                assert!((r.meta().wavelength_um[1] - w[1]).abs() < 1e-12);
+                assert_eq!(r.warnings().len(), 1, "{:?}", r.warnings());
+                assert!(r.warnings()[0].contains("wavelength units"));
+            }
+            None => {
+                let e = open_err(&dir.path().join("u.hdr"));
+                assert!(
+                    e.contains("no `wavelength units`") && e.contains("50"),
+                    "{e}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn missing_radiance_units_warn_and_geometry_keys_are_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = (2, 3, 4);
+    let data = pack(&arrange(Layout::Bsq, dims, truth), 4, false);
+    write(&dir.path().join("g.img"), &data);
+
+    let h = header(
+        dims,
+        4,
+        "bsq",
+        "eoir ifov rad = {0.001, 0.002}\neoir range m = 500\n",
+    )
+    .replace("eoir radiance units = W m-2 sr-1 um-1\n", "");
+    write(&dir.path().join("g.hdr"), h);
+    let r = EnviReader::open(&dir.path().join("g.hdr")).unwrap();
+    assert_eq!(r.meta().units, RadianceUnits::SpectralPerUm);
+    assert!(
+        r.warnings()
+            .iter()
+            .any(|w| w.contains("eoir radiance units")),
+        "{:?}",
+        r.warnings()
+    );
+    let g = r.meta().geometry.unwrap();
+    // 4 columns of 1 mrad and 3 rows of 2 mrad.
+    assert!((g.fov_x_deg - (0.004f64).to_degrees()).abs() < 1e-12);
+    assert!((g.fov_y_deg - (0.006f64).to_degrees()).abs() < 1e-12);
+    assert_eq!(g.range_m, Some(500.0));
+
+    // No geometry keys: no geometry.
+    write(&dir.path().join("g.hdr"), header(dims, 4, "bsq", ""));
+    assert_eq!(
+        EnviReader::open(&dir.path().join("g.hdr"))
+            .unwrap()
+            .meta()
+            .geometry,
+        None
+    );
+
+    // Both forms at once, or a range alone, are refused.
+    write(
+        &dir.path().join("g.hdr"),
+        header(
+            dims,
+            4,
+            "bsq",
+            "eoir ifov rad = {0.001, 0.002}\neoir fov deg = {1, 1}\n",
+        ),
+    );
+    let e = open_err(&dir.path().join("g.hdr"));
+    assert!(e.contains("only one"), "{e}");
+    write(
+        &dir.path().join("g.hdr"),
+        header(dims, 4, "bsq", "eoir range m = 100\n"),
+    );
+    let e = open_err(&dir.path().join("g.hdr"));
+    assert!(e.contains("without a field of view"), "{e}");
+    // An unknown radiance unit is named.
+    write(
+        &dir.path().join("g.hdr"),
+        header(dims, 4, "bsq", "").replace("W m-2 sr-1 um-1", "photons"),
+    );
+    let e = open_err(&dir.path().join("g.hdr"));
+    assert!(
+        e.contains("`photons`") && e.contains("W m-2 sr-1 um-1"),
+        "{e}"
+    );
+}
+
+#[test]
+fn truncated_data_file_is_one_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = (2, 3, 4); // 96 bytes of float32
+    write(&dir.path().join("t.hdr"), header(dims, 4, "bsq", ""));
+    let mut data = pack(&arrange(Layout::Bsq, dims, truth), 4, false);
+    data.truncate(90);
+    write(&dir.path().join("t.img"), &data);
+    let e = open_err(&dir.path().join("t.hdr"));
+    assert!(
+        e.contains("truncated") && e.contains("96 bytes") && e.contains("90 bytes"),
+        "{e}"
+    );
+}
+
+#[test]
+fn header_that_lies_about_the_size_is_one_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = (2, 3, 4);
+    // The header claims 2 bands; the file holds 3.
+    write(&dir.path().join("l.hdr"), header(dims, 4, "bsq", ""));
+    write(
+        &dir.path().join("l.img"),
+        pack(&arrange(Layout::Bsq, (3, 3, 4), truth), 4, false),
+    );
+    let e = open_err(&dir.path().join("l.img"));
+    assert!(
+        e.contains("header says 96 bytes") && e.contains("file has 144 bytes"),
+        "{e}"
+    );
+}
+
+#[test]
+fn nan_inf_and_negative_radiance_name_the_band_and_pixel() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = (4, 3, 3);
+    let bad = |b: usize, r: usize, c: usize| match (b, r, c) {
+        (1, 1, 2) => f64::NAN,
+        (2, 0, 1) => f64::INFINITY,
+        (3, 2, 0) => -0.5,
+        _ => truth(b, r, c),
+    };
+    write(&dir.path().join("bad.hdr"), header(dims, 4, "bsq", ""));
+    write(
+        &dir.path().join("bad.img"),
+        pack(&arrange(Layout::Bsq, dims, bad), 4, false),
+    );
+    let mut r = EnviReader::open(&dir.path().join("bad.hdr")).unwrap();
+    assert!(r.read_band(0, 0).is_ok());
+    for (b, needle) in [
+        (1, "row 1, col 2: radiance NaN"),
+        (2, "row 0, col 1: radiance inf"),
+        (3, "row 2, col 0: radiance -0.5"),
+    ] {
+        let e = r.read_band(0, b).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("band {b} (")) && e.contains(needle),
+            "{e}"
+        );
+    }
+    // Negative values produced by an offset are caught as well.
+    let h = header((1, 1, 2), 2, "bsq", "data offset values = {-100}\n");
+    write(&dir.path().join("neg.hdr"), h);
+    write(&dir.path().join("neg.img"), pack(&[150.0, 50.0], 2, false));
+    let e = io::read_cube(&dir.path().join("neg.hdr"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("col 1: radiance -50"), "{e}");
+    // Out-of-range requests.
+    assert!(r
+        .read_band(0, 4)
+        .unwrap_err()
+        .to_string()
+        .contains("band 4"));
+    assert!(r
+        .read_band(1, 0)
+        .unwrap_err()
+        .to_string()
+        .contains("frame 1"));
+}
+
+#[test]
+fn non_monotone_wavelengths_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = (3, 2, 2);
+    let h = header(dims, 4, "bsq", "").replace("{8, 9, 10}", "{8, 10, 9}");
+    write(&dir.path().join("m.hdr"), h);
+    write(
+        &dir.path().join("m.img"),
+        pack(&arrange(Layout::Bsq, dims, truth), 4, false),
+    );
+    let e = open_err(&dir.path().join("m.hdr"));
+    assert!(
+        e.contains("strictly increasing or strictly decreasing")
+            && e.contains("wavelength[1] = 10"),
+        "{e}"
+    );
+    // Equal neighbours are not strictly increasing either.
+    let h = header(dims, 4, "bsq", "").replace("{8, 9, 10}", "{8, 9, 9}");
+    write(&dir.path().join("m.hdr"), h);
+    assert!(open_err(&dir.path().join("m.hdr")).contains("wavelength[1] = 9"));
+}
+
+#[test]
+fn malformed_headers_give_one_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = (2, 2, 2);
+    let data = pack(&arrange(Layout::Bsq, dims, truth), 4, false);
+    write(&dir.path().join("h.img"), &data);
+    let cases: Vec<(String, &str)> = vec![
+        (
+            header(dims, 6, "bsq", ""),
+            "data type 6 (complex float32) is not supported",
+        ),
+        (
+            header(dims, 4, "bsq", "").replace("ENVI\n", "NOT ENVI\n"),
+            "first line must be `ENVI`",
+        ),
+        (
+            header(dims, 4, "bsq", "").replace("samples = 2", "samples = two"),
+            "`samples = two`: expected a whole number > 0",
+        ),
+        (
+            header(dims, 4, "bsq", "").replace("samples = 2\n", ""),
+            "no `samples`",
+        ),
+        (
+            header(dims, 4, "bsq", "").replace("wavelength = {8, 9}\n", ""),
+            "no `wavelength`",
+        ),
+        (
+            header(dims, 4, "bsq", "").replace("{8, 9}", "{8, 9, 10}"),
+            "`wavelength` has 3 values but the header says bands = 2",
+        ),
+        (
+            header(dims, 4, "bsq", "").replace("{8, 9}", "{8, nine}"),
+            "`nine`",
+        ),
+        (
+            header(dims, 4, "bsq", "").replace("{8, 9}", "{8, 9"),
+            "never closed",
+        ),
+        (
+            header(dims, 4, "bsq", "").replace("= bsq", "= bxq"),
+            "bsq, bil or bip",
+        ),
+        (
+            header(dims, 4, "bsq", "").replace("byte order = 0", "byte order = 2"),
+            "0 (little-endian) or 1 (big-endian)",
+        ),
+        (
+            header(dims, 4, "bsq", "").replace("Micrometers", "furlongs"),
+            "`wavelength units = furlongs`",
+        ),
+    ];
+    for (h, needle) in cases {
+        write(&dir.path().join("h.hdr"), &h);
+        let e = open_err(&dir.path().join("h.hdr"));
+        assert!(e.contains(needle), "expected `{needle}` in: {e}");
+        assert!(e.contains("h.hdr"), "{e}");
+    }
+}
+
+#[test]
+fn missing_partner_file_lists_what_was_tried() {
+    let dir = tempfile::tempdir().unwrap();
+    write(
+        &dir.path().join("lonely.hdr"),
+        header((1, 1, 1), 4, "bsq", ""),
+    );
+    let e = open_err(&dir.path().join("lonely.hdr"));
+    for n in [
+        "lonely, ",
+        "lonely.img",
+        "lonely.dat",
+        "lonely.raw",
+        "lonely.bsq",
+        "lonely.bil",
+        "lonely.bip",
+    ] {
+        assert!(e.contains(n), "{n} missing from: {e}");
+    }
+    write(&dir.path().join("orphan.img"), [0u8; 4]);
+    let e = open_err(&dir.path().join("orphan.img"));
+    assert!(
+        e.contains("orphan.img.hdr") && e.contains("orphan.hdr"),
+        "{e}"
+    );
+    let e = open_err(&dir.path().join("nothing.hdr"));
+    assert!(e.contains("nothing.hdr"), "{e}");
+}
+
+#[test]
+fn failed_write_leaves_no_file_behind() {
+    let dir = tempfile::tempdir().unwrap();
+    let cube = test_cube(2, 3, 4, 7);
+    // The header cannot be renamed into place (a directory holds its name): the data
+    // file was already written and must be removed again, and no temporary remains.
+    std::fs::create_dir(dir.path().join("c.hdr")).unwrap();
+    let e = envi::write(&dir.path().join("c.img"), &cube).unwrap_err();
+    assert!(e.to_string().contains("c.hdr"), "{e}");
+    assert_eq!(names(dir.path()), ["c.hdr"]);
+    // Nothing is created in a directory that does not exist.
+    let missing: PathBuf = dir.path().join("no/such/dir/c.img");
+    assert!(envi::write(&missing, &cube).is_err());
+    assert_eq!(names(dir.path()), ["c.hdr"]);
+    // A cube whose array disagrees with its metadata is refused before any file exists.
+    let mut broken = cube.clone();
+    broken.meta.rows = 5;
+    let e = envi::write(&dir.path().join("d.img"), &broken)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("cube shape"), "{e}");
+    assert_eq!(names(dir.path()), ["c.hdr"]);
+}
+
+#[test]
+fn documented_minimal_header_opens_and_unknown_units_count_as_missing() {
+    let dir = tempfile::tempdir().unwrap();
+    // The hand-written header of the module documentation and the README.
+    let h = "ENVI\nsamples = 640\nlines = 480\nbands = 2\ndata type = 4\ninterleave = bsq\nbyte order = 0\nwavelength units = Micrometers\nwavelength = {8.5, 10.5}\neoir radiance units = W m-2 sr-1 um-1\neoir fov deg = {10.0, 7.5}\n";
+    write(&dir.path().join("scene.hdr"), h);
+    let data = pack(
+        &arrange(Layout::Bsq, (2, 480, 640), |b, r, c| (b + r + c) as f64),
+        4,
+        false,
+    );
+    write(&dir.path().join("scene.img"), data);
+    let mut r = EnviReader::open(&dir.path().join("scene.hdr")).unwrap();
+    assert!(r.warnings().is_empty(), "{:?}", r.warnings());
+    assert_eq!(
+        (r.meta().rows, r.meta().cols, r.meta().bands()),
+        (480, 640, 2)
+    );
+    assert_eq!(
+        r.read_band(0, 1).unwrap()[[479, 639]],
+        (1 + 479 + 639) as f32
+    );
+
+    let h = h.replace("Micrometers", "Unknown");
+    write(&dir.path().join("scene.hdr"), h);
+    let r = EnviReader::open(&dir.path().join("scene.hdr")).unwrap();
+    assert_eq!(r.meta().wavelength_um, vec![8.5, 10.5]);
+    assert!(r.warnings()[0].contains("below 30"), "{:?}", r.warnings());
+}
