@@ -1,21 +1,667 @@
-//! exr cube format (being written in a parallel branch; this file is replaced there).
+//! Spectral OpenEXR cubes in the layout of Fichet, Pacanowski and Wilkie, "An OpenEXR
+//! Layout for Spectral Images", *Journal of Computer Graphics Techniques* 10(3), 2021
+//! (<http://jcgt.org/published/0010/03/01/>), as implemented by the authors' reference
+//! library (<https://github.com/afichet/spectral-exr>).
+//!
+//! # What the layout says (and what eoir does with it)
+//!
+//! - **Emissive channels** are named `S<k>.<value><unit>`: `k` is the Stokes component
+//!   (`S0` = total radiance, `S1`–`S3` = polarisation), `<value>` a positive decimal number
+//!   whose decimal separator is a **comma** (the dot is OpenEXR's layer separator), with an
+//!   optional power-of-ten exponent (`E`/`e`, optional sign, digits), and `<unit>` an
+//!   optional SI prefix (`Y Z E P T G M k h da d c m u n p`) followed by `m` (wavelength)
+//!   or `Hz` (frequency). The paper's pattern is
+//!   `^S[0-3]\.(\d*,?\d*([Ee][+-]?\d+)?)(Y|Z|E|P|T|G|M|k|h|da|d|c|m|u|n|p)?(m|Hz)$`;
+//!   eoir also accepts `µ`/`μ` for the micro prefix. Examples: `S0.550,000000nm`,
+//!   `S0.4,5um`, `S0.5E-7m`, `S0.600THz`.
+//! - **Reflective channels** are `T.<value><unit>`, bi-spectral re-radiation
+//!   `T.<value><unit>.<value><unit>`. eoir reads radiance only: reflective, polarised
+//!   (`S1`–`S3`) and any other channel (RGB previews, depth…) are ignored and listed in
+//!   [`CubeReader::warnings`](super::CubeReader::warnings).
+//! - OpenEXR stores channels **sorted by name**, so the band order is recovered by sorting
+//!   the parsed wavelengths, never assumed (`S0.1000,000000nm` sorts before
+//!   `S0.950,000000nm` as a string).
+//! - Header attributes of the layout: `spectralLayoutVersion` (string, `"1.0"`) and
+//!   `emissiveUnits` (string, `"W.m^-2.sr^-1"` in the reference library).
+//!
+//! # What the layout leaves open, and the eoir attributes that close it
+//!
+//! The layout does not say per which spectral unit a spectral density is given. eoir
+//! writes, next to the layout's attributes:
+//!
+//! | attribute | OpenEXR type | meaning |
+//! |---|---|---|
+//! | `eoirRadianceUnits` | string | [`RadianceUnits::as_str`]: spectral per µm or band-integrated |
+//! | `eoirSpectralDensityUnit` | string | `"um"`: values are per µm (spectral cubes only) |
+//! | `eoirWavelengthUm` | string | exact band centres, µm, space separated (the channel names carry 6 decimals in nm) |
+//! | `eoirFwhmUm` | string | band widths, µm, space separated, band order (if known) |
+//! | `eoirFovDeg` | `v2d` | full field of view `[horizontal, vertical]`, degrees (if known) |
+//! | `eoirRangeM` | `double` | range to the scene, m (if known) |
+//!
+//! Reading a file without `eoirSpectralDensityUnit` (any other tool's file), eoir takes the
+//! density unit from `emissiveUnits` if that names one (e.g. `W.m^-2.sr^-1.nm^-1`), and
+//! otherwise **assumes the unit of the channel names** (nm channels ⇒ values per nm, which
+//! are multiplied by 1000 to give per µm), recording the assumption in
+//! [`CubeReader::warnings`](super::CubeReader::warnings). A density per frequency unit is converted with
+//! `L_λ = L_ν · |dν/dλ| = L_ν · c / λ²`.
+//!
+//! The whole image is read at [`ExrReader::open`] (OpenEXR interleaves all channels of a
+//! scan-line block, so one band cannot be read alone); only the spectral planes are kept,
+//! as `f32`.
 
-use std::path::Path;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
 
-use ndarray::Array2;
+use exr::meta::attribute::AttributeValue;
+use exr::prelude::{
+    f16, AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes,
+    ReadChannels, ReadLayers, SmallVec, Text, WritableImage,
+};
+use ndarray::{Array2, Axis};
 
+use crate::constants::SPEED_OF_LIGHT_C;
 use crate::error::{Error, Result};
-use crate::scene::{Cube, CubeMeta};
+use crate::scene::{check_radiance_plane, Cube, CubeMeta, Geometry, RadianceUnits};
 
-/// Band-by-band reader.
+/// Layout version eoir writes into `spectralLayoutVersion`.
+pub const LAYOUT_VERSION: &str = "1.0";
+/// Attribute naming the layout version (Fichet et al. 2021).
+pub const ATTR_LAYOUT_VERSION: &str = "spectralLayoutVersion";
+/// Attribute naming the radiometric unit of emissive channels (Fichet et al. 2021).
+pub const ATTR_EMISSIVE_UNITS: &str = "emissiveUnits";
+/// The `emissiveUnits` value eoir writes (the reference library's spelling).
+pub const EMISSIVE_UNITS: &str = "W.m^-2.sr^-1";
+/// eoir attribute: [`RadianceUnits::as_str`] of the values.
+pub const ATTR_RADIANCE_UNITS: &str = "eoirRadianceUnits";
+/// eoir attribute: the spectral unit a spectral density is given per (`"um"`).
+pub const ATTR_SPECTRAL_DENSITY_UNIT: &str = "eoirSpectralDensityUnit";
+/// eoir attribute: exact band centres, µm, space separated, in band order.
+pub const ATTR_WAVELENGTH_UM: &str = "eoirWavelengthUm";
+/// eoir attribute: band full widths at half maximum, µm, space separated, in band order.
+pub const ATTR_FWHM_UM: &str = "eoirFwhmUm";
+/// eoir attribute: full field of view `[horizontal, vertical]`, degrees (`v2d`).
+pub const ATTR_FOV_DEG: &str = "eoirFovDeg";
+/// eoir attribute: range from the sensor to the scene, m (`double`).
+pub const ATTR_RANGE_M: &str = "eoirRangeM";
+
+/// OpenEXR type name of a vector of two doubles (Imath `V2d`).
+const V2D: &str = "v2d";
+/// How many ignored channel names a warning lists before summarising.
+const MAX_LISTED: usize = 12;
+
+/// A spectral unit of a channel name or a density: an SI-prefixed metre or hertz, kept as
+/// the prefix's power of ten so that conversions like nm → µm are correctly rounded.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum SpectralUnit {
+    /// A length unit of 10^`exp10` m.
+    Length { exp10: i32 },
+    /// A frequency unit of 10^`exp10` Hz.
+    Frequency { exp10: i32 },
+}
+
+/// `value · 10^k`, correctly rounded for |k| ≤ 22 (where 10^|k| is exact in f64).
+fn times_pow10(value: f64, k: i32) -> f64 {
+    if k >= 0 {
+        value * 10f64.powi(k)
+    } else {
+        value / 10f64.powi(-k)
+    }
+}
+
+impl SpectralUnit {
+    /// Parses `<prefix>m` or `<prefix>Hz` with the layout's SI prefixes (plus `µ`/`μ`).
+    fn parse(s: &str) -> Option<Self> {
+        let (prefix, frequency) = if let Some(p) = s.strip_suffix("Hz") {
+            (p, true)
+        } else if let Some(p) = s.strip_suffix('m') {
+            (p, false)
+        } else {
+            return None;
+        };
+        let exp10 = match prefix {
+            "" => 0,
+            "Y" => 24,
+            "Z" => 21,
+            "E" => 18,
+            "P" => 15,
+            "T" => 12,
+            "G" => 9,
+            "M" => 6,
+            "k" => 3,
+            "h" => 2,
+            "da" => 1,
+            "d" => -1,
+            "c" => -2,
+            "m" => -3,
+            "u" | "µ" | "μ" => -6,
+            "n" => -9,
+            "p" => -12,
+            _ => return None,
+        };
+        Some(if frequency {
+            SpectralUnit::Frequency { exp10 }
+        } else {
+            SpectralUnit::Length { exp10 }
+        })
+    }
+
+    /// Wavelength in µm of a channel whose name gives `value` in this unit (λ = c/ν for
+    /// frequencies).
+    fn wavelength_um(self, value: f64) -> f64 {
+        match self {
+            SpectralUnit::Length { exp10 } => times_pow10(value, exp10 + 6),
+            SpectralUnit::Frequency { exp10 } => {
+                times_pow10(SPEED_OF_LIGHT_C / times_pow10(value, exp10), 6)
+            }
+        }
+    }
+
+    /// Factor turning a spectral density per this unit into one per µm at `wavelength_um`.
+    ///
+    /// Per length unit ℓ = 10^e m: `L_per_µm = L_per_unit · (1 µm / ℓ) = L_per_unit ·
+    /// 10^(−6−e)`. Per frequency unit h = 10^e Hz: `L_ν = L_per_unit / h` per Hz, and
+    /// `L_λ = L_ν · |dν/dλ| = L_ν · c / λ²` per metre (ν = c/λ), i.e.
+    /// `L_per_µm = L_ν · c · 1e-6 / λ_m²`.
+    fn per_um_factor(self, wavelength_um: f64) -> f64 {
+        match self {
+            SpectralUnit::Length { exp10 } => times_pow10(1.0, -6 - exp10),
+            SpectralUnit::Frequency { exp10 } => {
+                let wavelength_m = wavelength_um * 1e-6;
+                times_pow10(
+                    SPEED_OF_LIGHT_C * 1e-6 / (wavelength_m * wavelength_m),
+                    -exp10,
+                )
+            }
+        }
+    }
+}
+
+/// The kind of channel a name denotes under the layout.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum ChannelKind {
+    /// `S<k>.…`: Stokes component `k` of emitted radiance (0 = total).
+    Emissive(u8),
+    /// `T.…`: reflectance (not radiance).
+    Reflective,
+}
+
+/// A channel name parsed under the layout: kind, value and unit as written.
+#[derive(Debug, Clone, PartialEq)]
+struct SpectralName {
+    kind: ChannelKind,
+    value: f64,
+    unit: SpectralUnit,
+    unit_text: String,
+}
+
+/// Parses a channel name of the layout; `None` for anything else (RGB, depth, bi-spectral
+/// re-radiation, malformed numbers…).
+fn parse_channel_name(name: &str) -> Option<SpectralName> {
+    let (layer, rest) = name.split_once('.')?;
+    let kind = match layer {
+        "S0" => ChannelKind::Emissive(0),
+        "S1" => ChannelKind::Emissive(1),
+        "S2" => ChannelKind::Emissive(2),
+        "S3" => ChannelKind::Emissive(3),
+        "T" => ChannelKind::Reflective,
+        _ => return None,
+    };
+    // Number: digits, optional comma, digits, optional exponent [Ee][+-]?digits.
+    let bytes = rest.as_bytes();
+    let mut i = 0;
+    let mut digits = 0;
+    while i < bytes.len() && bytes[i].is_ascii_digit() {
+        i += 1;
+        digits += 1;
+    }
+    if i < bytes.len() && bytes[i] == b',' {
+        i += 1;
+        while i < bytes.len() && bytes[i].is_ascii_digit() {
+            i += 1;
+            digits += 1;
+        }
+    }
+    if digits == 0 {
+        return None;
+    }
+    if i < bytes.len() && (bytes[i] == b'e' || bytes[i] == b'E') {
+        let mut j = i + 1;
+        if j < bytes.len() && (bytes[j] == b'+' || bytes[j] == b'-') {
+            j += 1;
+        }
+        let start = j;
+        while j < bytes.len() && bytes[j].is_ascii_digit() {
+            j += 1;
+        }
+        // Without digits the letter is the exa prefix, not an exponent.
+        if j > start {
+            i = j;
+        }
+    }
+    let number = rest[..i].replace(',', ".");
+    let unit_text = &rest[i..];
+    let unit = SpectralUnit::parse(unit_text)?;
+    let value: f64 = number.parse().ok()?;
+    if !(value.is_finite() && value > 0.0) {
+        return None;
+    }
+    Some(SpectralName {
+        kind,
+        value,
+        unit,
+        unit_text: unit_text.to_string(),
+    })
+}
+
+/// The name eoir gives the channel of a band centred on `wavelength_um`: nanometres with
+/// six decimals and a comma, e.g. 0.55 µm → `S0.550,000000nm`.
+pub fn channel_name(wavelength_um: f64) -> String {
+    let value = format!("{:.6}", wavelength_um * 1e3).replace('.', ",");
+    format!("S0.{value}nm")
+}
+
+/// Parses an `emissiveUnits` string such as `W.m^-2.sr^-1` or `W.m^-2.sr^-1.nm^-1`.
+/// `Ok(Some(unit))` if it names a spectral density unit, `Ok(None)` for plain radiance,
+/// `Err(())` if it is not a radiance unit eoir understands.
+fn parse_emissive_units(s: &str) -> std::result::Result<Option<(SpectralUnit, String)>, ()> {
+    let mut watt = false;
+    let mut area = false;
+    let mut solid_angle = false;
+    let mut density = None;
+    for token in s.split(['.', ' ', '*']).filter(|t| !t.is_empty()) {
+        match token {
+            "W" if !watt => watt = true,
+            "m^-2" | "m-2" if !area => area = true,
+            "sr^-1" | "sr-1" if !solid_angle => solid_angle = true,
+            t => {
+                let per = t
+                    .strip_suffix("^-1")
+                    .or_else(|| t.strip_suffix("-1"))
+                    .ok_or(())?;
+                if density.is_some() {
+                    return Err(());
+                }
+                density = Some((SpectralUnit::parse(per).ok_or(())?, per.to_string()));
+            }
+        }
+    }
+    if watt && area && solid_angle {
+        Ok(density)
+    } else {
+        Err(())
+    }
+}
+
+/// Formats values so that parsing them gives the same `f64` back.
+fn format_list(values: &[f64]) -> String {
+    values
+        .iter()
+        .map(|v| format!("{v:?}"))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Parses a whitespace-separated list of numbers from attribute `name`.
+fn parse_list(path: &Path, name: &str, text: &str) -> Result<Vec<f64>> {
+    text.split_whitespace()
+        .map(|t| {
+            t.parse::<f64>().map_err(|_| {
+                Error::format(
+                    path,
+                    format!("attribute `{name}`: `{t}` is not a number (expected numbers separated by spaces)"),
+                )
+            })
+        })
+        .collect()
+}
+
+/// One spectral channel found in the file.
+struct Found {
+    wavelength_um: f64,
+    name: String,
+    unit: SpectralUnit,
+    unit_text: String,
+    /// Row-major `rows × cols` values as stored.
+    plane: Vec<f32>,
+}
+
+/// Reads a spectral OpenEXR cube (one frame); see the [module documentation](self).
 pub struct ExrReader {
+    path: PathBuf,
     meta: CubeMeta,
+    /// Spectral planes in band order, row-major `rows × cols`, as stored in the file.
+    planes: Vec<Vec<f32>>,
+    /// Per band: factor turning stored values into the cube's units.
+    scale: Vec<f64>,
+    warnings: Vec<String>,
 }
 
 impl ExrReader {
-    /// Opens a file.
+    /// Opens and reads a spectral OpenEXR file, parsing the band order from the channel
+    /// names and the units and geometry from the attributes.
     pub fn open(path: &Path) -> Result<Self> {
-        Err(Error::format(path, "format not available in this build"))
+        std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+        let image = exr::prelude::read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .all_channels()
+            .all_layers()
+            .all_attributes()
+            .from_file(path)
+            .map_err(|e| match e {
+                exr::error::Error::Io(io) => Error::io(path, io),
+                other => Error::format(path, format!("not a readable OpenEXR file: {other}")),
+            })?;
+        let mut warnings = Vec::new();
+
+        let has_s0 = |layer: &Layer<AnyChannels<FlatSamples>>| {
+            layer.channel_data.list.iter().any(|c| {
+                parse_channel_name(&c.name.to_string())
+                    .is_some_and(|n| n.kind == ChannelKind::Emissive(0))
+            })
+        };
+        let n_layers = image.layer_data.len();
+        let Some(layer_index) = image.layer_data.iter().position(has_s0) else {
+            let names: Vec<String> = image
+                .layer_data
+                .iter()
+                .flat_map(|l| l.channel_data.list.iter().map(|c| c.name.to_string()))
+                .collect();
+            return Err(Error::format(
+                path,
+                format!(
+                    "no spectral radiance channels: expected channels named like `S0.550,000000nm` (Fichet et al. 2021 spectral OpenEXR layout), found {}",
+                    list_names(&names)
+                ),
+            ));
+        };
+        if n_layers > 1 {
+            warnings.push(format!(
+                "the file has {n_layers} parts; read part {layer_index}, the first with spectral channels, and ignored the others"
+            ));
+        }
+        let mut layers = image.layer_data;
+        let layer = layers.swap_remove(layer_index);
+        let rows = layer.size.y();
+        let cols = layer.size.x();
+        let attrs = layer.attributes.other;
+
+        // Channels: keep S0, list the rest.
+        let mut found = Vec::new();
+        let mut ignored = Vec::new();
+        for channel in layer.channel_data.list {
+            let name = channel.name.to_string();
+            match parse_channel_name(&name) {
+                Some(n) if n.kind == ChannelKind::Emissive(0) => {
+                    if channel.sampling.x() != 1 || channel.sampling.y() != 1 {
+                        return Err(Error::format(
+                            path,
+                            format!(
+                                "channel `{name}` is subsampled ({} x {}); spectral channels must have one sample per pixel",
+                                channel.sampling.x(),
+                                channel.sampling.y()
+                            ),
+                        ));
+                    }
+                    let plane = match channel.sample_data {
+                        FlatSamples::F32(v) => v,
+                        FlatSamples::F16(v) => v.into_iter().map(f16::to_f32).collect(),
+                        FlatSamples::U32(_) => {
+                            return Err(Error::format(
+                                path,
+                                format!("channel `{name}` holds u32 integers; spectral radiance must be f16 or f32"),
+                            ))
+                        }
+                    };
+                    found.push(Found {
+                        wavelength_um: n.unit.wavelength_um(n.value),
+                        name,
+                        unit: n.unit,
+                        unit_text: n.unit_text,
+                        plane,
+                    });
+                }
+                _ => ignored.push(name),
+            }
+        }
+        if !ignored.is_empty() {
+            warnings.push(format!(
+                "ignored {} channel(s) that are not spectral radiance (eoir reads only the emissive S0.* channels): {}",
+                ignored.len(),
+                list_names(&ignored)
+            ));
+        }
+        found.sort_by(|a, b| a.wavelength_um.total_cmp(&b.wavelength_um));
+        for pair in found.windows(2) {
+            let rel = (pair[1].wavelength_um - pair[0].wavelength_um) / pair[1].wavelength_um;
+            if rel < 1e-12 {
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "channels `{}` and `{}` name the same wavelength ({} µm); each band needs its own wavelength",
+                        pair[0].name, pair[1].name, pair[1].wavelength_um
+                    ),
+                ));
+            }
+        }
+        let mut wavelength_um: Vec<f64> = found.iter().map(|f| f.wavelength_um).collect();
+
+        // Layout attributes.
+        match text_attr(path, &attrs, ATTR_LAYOUT_VERSION)? {
+            Some(v) if v == LAYOUT_VERSION => {}
+            Some(v) => warnings.push(format!(
+                "{ATTR_LAYOUT_VERSION} = `{v}`; eoir knows version {LAYOUT_VERSION} and read the file as such"
+            )),
+            None => warnings.push(format!(
+                "no {ATTR_LAYOUT_VERSION} attribute; read the file as spectral layout version {LAYOUT_VERSION}"
+            )),
+        }
+        let emissive_density = match text_attr(path, &attrs, ATTR_EMISSIVE_UNITS)? {
+            Some(u) => match parse_emissive_units(&u) {
+                Ok(d) => d,
+                Err(()) => {
+                    warnings.push(format!(
+                        "{ATTR_EMISSIVE_UNITS} = `{u}` is not a radiance unit eoir understands; read the values as radiance in W m-2 sr-1 (per spectral unit)"
+                    ));
+                    None
+                }
+            },
+            None => None,
+        };
+
+        // Units: band-integrated or spectral, and per which spectral unit.
+        let eoir_units = match text_attr(path, &attrs, ATTR_RADIANCE_UNITS)? {
+            Some(u) => Some(RadianceUnits::parse(&u).ok_or_else(|| {
+                Error::format(
+                    path,
+                    format!(
+                        "attribute `{ATTR_RADIANCE_UNITS}` = `{u}`: expected `{}` or `{}`",
+                        RadianceUnits::SpectralPerUm.as_str(),
+                        RadianceUnits::BandIntegrated.as_str()
+                    ),
+                )
+            })?),
+            None => None,
+        };
+        let eoir_density = match text_attr(path, &attrs, ATTR_SPECTRAL_DENSITY_UNIT)? {
+            Some(u) => Some(SpectralUnit::parse(u.trim()).ok_or_else(|| {
+                Error::format(
+                    path,
+                    format!(
+                        "attribute `{ATTR_SPECTRAL_DENSITY_UNIT}` = `{u}`: expected a wavelength or frequency unit such as `um`, `nm` or `THz`"
+                    ),
+                )
+            })?),
+            None => None,
+        };
+        let (units, scale) = match (eoir_units, eoir_density) {
+            (Some(RadianceUnits::BandIntegrated), Some(_)) => {
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "attribute `{ATTR_RADIANCE_UNITS}` says band-integrated but `{ATTR_SPECTRAL_DENSITY_UNIT}` gives a spectral density unit; remove one of them"
+                    ),
+                ))
+            }
+            (Some(RadianceUnits::BandIntegrated), None) => {
+                (RadianceUnits::BandIntegrated, vec![1.0; found.len()])
+            }
+            (_, Some(d)) => {
+                let s = wavelength_um.iter().map(|&w| d.per_um_factor(w)).collect();
+                (RadianceUnits::SpectralPerUm, s)
+            }
+            (Some(RadianceUnits::SpectralPerUm), None) => {
+                (RadianceUnits::SpectralPerUm, vec![1.0; found.len()])
+            }
+            (None, None) => {
+                let s = if let Some((d, _)) = emissive_density {
+                    wavelength_um.iter().map(|&w| d.per_um_factor(w)).collect()
+                } else {
+                    let mut units: Vec<&str> = found.iter().map(|f| f.unit_text.as_str()).collect();
+                    units.sort_unstable();
+                    units.dedup();
+                    warnings.push(format!(
+                        "the file does not say per which spectral unit its radiance is given (no `{ATTR_SPECTRAL_DENSITY_UNIT}` attribute, `{ATTR_EMISSIVE_UNITS}` names none); assumed the unit of the channel names ({}) and converted to W m-2 sr-1 um-1",
+                        units.join(", ")
+                    ));
+                    found
+                        .iter()
+                        .map(|f| f.unit.per_um_factor(f.wavelength_um))
+                        .collect()
+                };
+                (RadianceUnits::SpectralPerUm, s)
+            }
+        };
+
+        // Exact wavelengths written by eoir (names carry 1e-6 nm).
+        if let Some(text) = text_attr(path, &attrs, ATTR_WAVELENGTH_UM)? {
+            let exact = parse_list(path, ATTR_WAVELENGTH_UM, &text)?;
+            let agrees = exact.len() == wavelength_um.len()
+                && exact
+                    .iter()
+                    .zip(&wavelength_um)
+                    .all(|(e, n)| (e - n).abs() <= 1e-9 + 1e-12 * n.abs());
+            if agrees {
+                wavelength_um = exact;
+            } else {
+                warnings.push(format!(
+                    "attribute `{ATTR_WAVELENGTH_UM}` does not match the channel names ({} values for {} channels); used the wavelengths in the channel names",
+                    exact.len(),
+                    wavelength_um.len()
+                ));
+            }
+        }
+        let fwhm_um = match text_attr(path, &attrs, ATTR_FWHM_UM)? {
+            Some(text) => Some(parse_list(path, ATTR_FWHM_UM, &text)?),
+            None => None,
+        };
+
+        // Geometry.
+        let fov = match attrs.get(ATTR_FOV_DEG.as_bytes()) {
+            None => None,
+            Some(AttributeValue::Custom { kind, bytes }) if kind == V2D && bytes.len() == 16 => {
+                let mut x = [0u8; 8];
+                let mut y = [0u8; 8];
+                x.copy_from_slice(&bytes[..8]);
+                y.copy_from_slice(&bytes[8..]);
+                Some((f64::from_le_bytes(x), f64::from_le_bytes(y)))
+            }
+            Some(AttributeValue::FloatVec2(v)) => Some((f64::from(v.x()), f64::from(v.y()))),
+            Some(other) => {
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "attribute `{ATTR_FOV_DEG}` has type `{}`; expected v2d or v2f [horizontal, vertical] degrees",
+                        String::from_utf8_lossy(other.kind_name())
+                    ),
+                ))
+            }
+        };
+        let range_m = match attrs.get(ATTR_RANGE_M.as_bytes()) {
+            None => None,
+            Some(AttributeValue::F64(v)) => Some(*v),
+            Some(AttributeValue::F32(v)) => Some(f64::from(*v)),
+            Some(other) => {
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "attribute `{ATTR_RANGE_M}` has type `{}`; expected double (metres)",
+                        String::from_utf8_lossy(other.kind_name())
+                    ),
+                ))
+            }
+        };
+        let geometry = match fov {
+            Some((fov_x_deg, fov_y_deg)) => Some(Geometry {
+                fov_x_deg,
+                fov_y_deg,
+                range_m,
+            }),
+            None => {
+                if range_m.is_some() {
+                    warnings.push(format!(
+                        "attribute `{ATTR_RANGE_M}` ignored: without `{ATTR_FOV_DEG}` the file has no geometry"
+                    ));
+                }
+                None
+            }
+        };
+
+        let meta = CubeMeta {
+            wavelength_um,
+            fwhm_um,
+            units,
+            geometry,
+            rows,
+            cols,
+        };
+        meta.validate(&path.display().to_string())?;
+
+        let planes = found.into_iter().map(|f| f.plane).collect();
+        Ok(ExrReader {
+            path: path.to_path_buf(),
+            meta,
+            planes,
+            scale,
+            warnings,
+        })
+    }
+}
+
+/// Lists channel names for a message, at most [`MAX_LISTED`] of them.
+fn list_names(names: &[String]) -> String {
+    if names.is_empty() {
+        return "no channels".into();
+    }
+    let shown = names
+        .iter()
+        .take(MAX_LISTED)
+        .map(|n| format!("`{n}`"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    if names.len() > MAX_LISTED {
+        format!("{shown} and {} more", names.len() - MAX_LISTED)
+    } else {
+        shown
+    }
+}
+
+/// A string attribute, `None` if absent, an error if present with another type.
+fn text_attr(
+    path: &Path,
+    attrs: &HashMap<Text, AttributeValue>,
+    name: &str,
+) -> Result<Option<String>> {
+    match attrs.get(name.as_bytes()) {
+        None => Ok(None),
+        Some(AttributeValue::Text(t)) => Ok(Some(t.to_string())),
+        Some(other) => Err(Error::format(
+            path,
+            format!(
+                "attribute `{name}` has type `{}`; expected string",
+                String::from_utf8_lossy(other.kind_name())
+            ),
+        )),
     }
 }
 
@@ -23,12 +669,243 @@ impl super::CubeReader for ExrReader {
     fn meta(&self) -> &CubeMeta {
         &self.meta
     }
-    fn read_band(&mut self, _frame: usize, _band: usize) -> Result<Array2<f32>> {
-        Err(Error::OutOfRange("format not available in this build".into()))
+
+    fn read_band(&mut self, frame: usize, band: usize) -> Result<Array2<f32>> {
+        if frame != 0 {
+            return Err(Error::param(
+                "frame",
+                frame,
+                "0 (an OpenEXR cube holds one frame)",
+            ));
+        }
+        let bands = self.meta.bands();
+        if band >= bands {
+            return Err(Error::param(
+                "band",
+                band,
+                format!("an index below {bands} (bands in {})", self.path.display()),
+            ));
+        }
+        let scale = self.scale[band];
+        let values: Vec<f32> = if scale == 1.0 {
+            self.planes[band].clone()
+        } else {
+            self.planes[band]
+                .iter()
+                .map(|&v| (f64::from(v) * scale) as f32)
+                .collect()
+        };
+        let plane =
+            Array2::from_shape_vec((self.meta.rows, self.meta.cols), values).map_err(|_| {
+                Error::format(
+                    &self.path,
+                    format!(
+                        "band {band}: channel size does not match the image size {} x {}",
+                        self.meta.rows, self.meta.cols
+                    ),
+                )
+            })?;
+        check_radiance_plane(
+            &self.path.display().to_string(),
+            band,
+            self.meta.wavelength_um[band],
+            plane.view(),
+        )?;
+        Ok(plane)
+    }
+
+    fn warnings(&self) -> Vec<String> {
+        self.warnings.clone()
     }
 }
 
-/// Writes a cube.
-pub fn write(path: &Path, _cube: &Cube) -> Result<()> {
-    Err(Error::format(path, "format not available in this build"))
+/// Makes an OpenEXR text value, naming the attribute if a character cannot be stored.
+fn text(path: &Path, what: &str, s: &str) -> Result<Text> {
+    Text::new_or_none(s).ok_or_else(|| {
+        Error::format(
+            path,
+            format!("{what} `{s}` has characters OpenEXR text cannot hold (Latin-1 only)"),
+        )
+    })
+}
+
+/// Writes `cube` as a spectral OpenEXR file (f32, ZIP-compressed scan lines) with the
+/// layout's and eoir's attributes (see the [module documentation](self)), atomically.
+///
+/// Channels are `S0.<nm with 6 decimals>nm`; the exact wavelengths go into
+/// `eoirWavelengthUm`. Fails, writing nothing, if any value is NaN, infinite or negative,
+/// or if two bands would get the same channel name.
+pub fn write(path: &Path, cube: &Cube) -> Result<()> {
+    let meta = &cube.meta;
+    let source = path.display().to_string();
+    meta.validate(&source)?;
+    let (bands, rows, cols) = cube.data.dim();
+    if bands != meta.bands() || rows != meta.rows || cols != meta.cols {
+        return Err(Error::param(
+            "cube shape",
+            format!("[{bands}, {rows}, {cols}]"),
+            format!(
+                "[{}, {}, {}] as the metadata says",
+                meta.bands(),
+                meta.rows,
+                meta.cols
+            ),
+        ));
+    }
+
+    let mut channels: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
+    let mut names: Vec<String> = Vec::with_capacity(bands);
+    for (b, plane) in cube.data.axis_iter(Axis(0)).enumerate() {
+        let wl = meta.wavelength_um[b];
+        check_radiance_plane(&source, b, wl, plane)?;
+        let name = channel_name(wl);
+        if let Some(prev) = names.iter().position(|n| *n == name) {
+            return Err(Error::format(
+                path,
+                format!(
+                    "bands {prev} ({} µm) and {b} ({wl} µm) both round to channel `{name}`; spectral OpenEXR names carry 1e-6 nm",
+                    meta.wavelength_um[prev]
+                ),
+            ));
+        }
+        let samples: Vec<f32> = plane.iter().copied().collect();
+        channels.push(AnyChannel::new(
+            text(path, "channel name", &name)?,
+            FlatSamples::F32(samples),
+        ));
+        names.push(name);
+    }
+
+    let mut attributes = LayerAttributes {
+        software_name: Some(text(path, "software", "eoir")?),
+        ..LayerAttributes::default()
+    };
+    let other = &mut attributes.other;
+    let mut put_text = |name: &str, value: &str| -> Result<()> {
+        other.insert(
+            text(path, "attribute name", name)?,
+            AttributeValue::Text(text(path, name, value)?),
+        );
+        Ok(())
+    };
+    put_text(ATTR_LAYOUT_VERSION, LAYOUT_VERSION)?;
+    put_text(ATTR_EMISSIVE_UNITS, EMISSIVE_UNITS)?;
+    put_text(ATTR_RADIANCE_UNITS, meta.units.as_str())?;
+    if meta.units == RadianceUnits::SpectralPerUm {
+        put_text(ATTR_SPECTRAL_DENSITY_UNIT, "um")?;
+    }
+    put_text(ATTR_WAVELENGTH_UM, &format_list(&meta.wavelength_um))?;
+    if let Some(f) = &meta.fwhm_um {
+        put_text(ATTR_FWHM_UM, &format_list(f))?;
+    }
+    if let Some(g) = &meta.geometry {
+        let mut bytes: SmallVec<[u8; 16]> = SmallVec::new();
+        bytes.extend_from_slice(&g.fov_x_deg.to_le_bytes());
+        bytes.extend_from_slice(&g.fov_y_deg.to_le_bytes());
+        other.insert(
+            text(path, "attribute name", ATTR_FOV_DEG)?,
+            AttributeValue::Custom {
+                kind: text(path, "attribute type", V2D)?,
+                bytes,
+            },
+        );
+        if let Some(r) = g.range_m {
+            other.insert(
+                text(path, "attribute name", ATTR_RANGE_M)?,
+                AttributeValue::F64(r),
+            );
+        }
+    }
+
+    let layer = Layer::new(
+        (cols, rows),
+        attributes,
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(channels),
+    );
+    let image = Image::from_layer(layer);
+    super::atomic_write(path, |w| {
+        image.write().to_buffered(w).map_err(|e| match e {
+            exr::error::Error::Io(io) => Error::io(path, io),
+            other => Error::format(path, format!("could not write OpenEXR: {other}")),
+        })
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_layout_names() {
+        let n = parse_channel_name("S0.550,000000nm").unwrap();
+        assert_eq!(n.kind, ChannelKind::Emissive(0));
+        assert!((n.unit.wavelength_um(n.value) - 0.55).abs() < 1e-12);
+        let n = parse_channel_name("S0.4,5um").unwrap();
+        assert!((n.unit.wavelength_um(n.value) - 4.5).abs() < 1e-12);
+        let n = parse_channel_name("S0.5E-7m").unwrap();
+        assert!((n.unit.wavelength_um(n.value) - 0.5).abs() < 1e-12);
+        // 'E' without digits is the exa prefix: 5 Em is a (silly but valid) wavelength.
+        let n = parse_channel_name("S0.5Em").unwrap();
+        assert_eq!(n.unit, SpectralUnit::Length { exp10: 18 });
+        let n = parse_channel_name("S0.,5mm").unwrap();
+        assert!((n.unit.wavelength_um(n.value) - 500.0).abs() < 1e-9);
+        let n = parse_channel_name("S0.550,nm").unwrap();
+        assert_eq!(n.value, 550.0);
+        let n = parse_channel_name("S2.550nm").unwrap();
+        assert_eq!(n.kind, ChannelKind::Emissive(2));
+        let n = parse_channel_name("T.550nm").unwrap();
+        assert_eq!(n.kind, ChannelKind::Reflective);
+        // 600 THz = c / 600e12 m = 0.4997 µm.
+        let n = parse_channel_name("S0.600THz").unwrap();
+        let expected = 299_792_458.0 / 600e12 * 1e6;
+        assert!((n.unit.wavelength_um(n.value) - expected).abs() < 1e-12);
+        for bad in [
+            "R",
+            "S0",
+            "S0.nm",
+            "S0.550",
+            "S0.550.0nm",
+            "S4.550nm",
+            "S0.550xm",
+            "S0.550nm.600nm",
+            "S0.0nm",
+            "S0.550,0,0nm",
+        ] {
+            assert!(parse_channel_name(bad).is_none(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn eoir_names_round_trip_to_1e6_nm() {
+        for wl in [0.4, 0.55, 0.95, 1.0, 3.999_999_7, 12.345_678_9] {
+            let name = channel_name(wl);
+            let n = parse_channel_name(&name).unwrap();
+            assert!((n.unit.wavelength_um(n.value) - wl).abs() < 1e-9, "{name}");
+        }
+        assert_eq!(channel_name(0.55), "S0.550,000000nm");
+    }
+
+    #[test]
+    fn density_factors() {
+        // Per nm → per µm: ×1000 (1 µm = 1000 nm).
+        let nm = SpectralUnit::parse("nm").unwrap();
+        assert!((nm.per_um_factor(0.5) - 1000.0).abs() < 1e-9);
+        // Per Hz → per µm at 1 µm: a 1 µm-wide slice at 1 µm spans c/λ² · 1 µm = 2.998e14 Hz.
+        let hz = SpectralUnit::parse("Hz").unwrap();
+        let lam = 1e-6;
+        let dnu = SPEED_OF_LIGHT_C / (lam - 0.5e-9) - SPEED_OF_LIGHT_C / (lam + 0.5e-9);
+        let per_nm = hz.per_um_factor(1.0) / 1000.0;
+        assert!((per_nm - dnu).abs() / dnu < 1e-6);
+    }
+
+    #[test]
+    fn emissive_units_strings() {
+        assert_eq!(parse_emissive_units("W.m^-2.sr^-1"), Ok(None));
+        let (u, t) = parse_emissive_units("W.m^-2.sr^-1.nm^-1").unwrap().unwrap();
+        assert_eq!(u, SpectralUnit::Length { exp10: -9 });
+        assert_eq!(t, "nm");
+        assert!(parse_emissive_units("W.m^-2").is_err());
+        assert!(parse_emissive_units("cd.m^-2").is_err());
+    }
 }
