@@ -14,11 +14,16 @@ use eoir::sensor::presets;
 fn main() -> eoir::Result<()> {
     let threads = rayon::current_num_threads();
     println!("rayon threads: {threads}");
-    println!("{:>14} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}", "scene", "bands", "padded", "setup_s", "fft_s", "otf_s", "inv_s", "total_s");
+    println!(
+        "{:>14} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
+        "scene", "bands", "padded", "setup_s", "fft_s", "otf_s", "inv_s", "total_s"
+    );
     for (k, bands) in [(1usize, 30usize), (2, 30), (3, 30), (3, 60)] {
         let sensor = presets::load("multimir", &[])?;
         let (rows, cols) = (sensor.detector.rows * k, sensor.detector.cols * k);
-        let wl: Vec<f64> = (0..bands).map(|i| 4.4 + 0.9 * i as f64 / (bands - 1) as f64).collect();
+        let wl: Vec<f64> = (0..bands)
+            .map(|i| 4.4 + 0.9 * i as f64 / (bands - 1) as f64)
+            .collect();
         let data = Array3::from_shape_fn((bands, rows, cols), |(b, r, c)| {
             (1.0 + 0.5 * ((r * 7 + c * 13 + b) % 17) as f64 / 17.0) as f32
         });
@@ -33,7 +38,12 @@ fn main() -> eoir::Result<()> {
         };
         let cube = Cube::new(data, meta.clone())?;
         let t0 = Instant::now();
-        let imager = Imager::new(&sensor, &meta, &meta.geometry.unwrap(), DEFAULT_WRAP_TOLERANCE)?;
+        let imager = Imager::new(
+            &sensor,
+            &meta,
+            &meta.geometry.unwrap(),
+            DEFAULT_WRAP_TOLERANCE,
+        )?;
         let setup = t0.elapsed().as_secs_f64();
         let mut reader = MemoryCube::new(cube);
         let t1 = Instant::now();

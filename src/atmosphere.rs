@@ -163,7 +163,10 @@ impl SlantPath {
     pub fn fried_r0(&self, wavelength_m: f64) -> Result<f64> {
         let lambda = require_positive("wavelength_m", wavelength_m)?;
         self.validate()?;
-        Ok(fried_r0_from_weighted_cn2(lambda, self.spherical_weighted_cn2()))
+        Ok(fried_r0_from_weighted_cn2(
+            lambda,
+            self.spherical_weighted_cn2(),
+        ))
     }
 
     /// `∫₀^R Cn²₀ h(z)^{−4/3} · weight(s/R) dz`, s = R − z the distance from the target.

@@ -96,6 +96,10 @@ pub fn require_in_range(field: &str, value: f64, lo: f64, hi: f64) -> Result<f64
     if value.is_finite() && value >= lo && value <= hi {
         Ok(value)
     } else {
-        Err(Error::param(field, value, format!("a number in [{lo}, {hi}]")))
+        Err(Error::param(
+            field,
+            value,
+            format!("a number in [{lo}, {hi}]"),
+        ))
     }
 }

@@ -87,8 +87,12 @@ fn parse_pair(text: &str, what: &str) -> Result<(f64, f64)> {
     if parts.len() != 2 {
         bail!("{what} `{text}`: expected two comma-separated numbers, e.g. 5.3,4.0");
     }
-    let a: f64 = parts[0].parse().with_context(|| format!("{what} `{text}`"))?;
-    let b: f64 = parts[1].parse().with_context(|| format!("{what} `{text}`"))?;
+    let a: f64 = parts[0]
+        .parse()
+        .with_context(|| format!("{what} `{text}`"))?;
+    let b: f64 = parts[1]
+        .parse()
+        .with_context(|| format!("{what} `{text}`"))?;
     Ok((a, b))
 }
 

@@ -92,7 +92,9 @@ pub fn run(
     let mut frames = Vec::with_capacity(n_frames);
     let mut stats = ImagingStats::default();
     for f in 0..n_frames {
-        let (e, s) = imager.mean_electrons(reader, f, |b, _| progress(f * active + b, n_frames * active))?;
+        let (e, s) = imager.mean_electrons(reader, f, |b, _| {
+            progress(f * active + b, n_frames * active)
+        })?;
         stats.read_s += s.read_s;
         stats.fft_s += s.fft_s;
         stats.otf_s += s.otf_s;
@@ -100,7 +102,10 @@ pub fn run(
         stats.bands_used += s.bands_used;
         stats.padded_shape = s.padded_shape;
         let dn = ideal_dn(sensor, &e);
-        frames.push(FrameProducts { electrons_mean: e.mapv(|v| v as f32), dn });
+        frames.push(FrameProducts {
+            electrons_mean: e.mapv(|v| v as f32),
+            dn,
+        });
     }
     let d = &sensor.detector;
     let first = &frames[0];
@@ -162,7 +167,12 @@ pub fn run(
             "total": t_start.elapsed().as_secs_f64(),
         },
     });
-    Ok(RunOutput { frames, sensor: sensor.clone(), report, warnings })
+    Ok(RunOutput {
+        frames,
+        sensor: sensor.clone(),
+        report,
+        warnings,
+    })
 }
 
 impl RunOutput {
@@ -175,7 +185,11 @@ impl RunOutput {
         let mut written = Vec::new();
         let single = self.frames.len() == 1;
         for (i, f) in self.frames.iter().enumerate() {
-            let prefix = if single { String::new() } else { format!("frame_{i:04}_") };
+            let prefix = if single {
+                String::new()
+            } else {
+                format!("frame_{i:04}_")
+            };
             let p = dir.join(format!("{prefix}dn.tiff"));
             raster::write_tiff_u16(&p, f.dn.view())?;
             written.push(p);

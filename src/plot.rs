@@ -126,7 +126,9 @@ pub fn write_line_plot(path: &Path, plot: &LinePlot<'_>) -> Result<()> {
                     ))
                     .map_err(|e| draw_err(e.to_string()))?
                     .label(s.label)
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], legend_style));
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], legend_style)
+                    });
             }
             for m in &plot.markers {
                 let style = ShapeStyle::from(&RGBColor(90, 90, 90)).stroke_width(1);
@@ -193,8 +195,15 @@ mod tests {
             title: "test",
             x_label: "x",
             y_label: "y",
-            series: vec![Series { label: "line", x: &x, y: &y }],
-            markers: vec![Marker { label: "Nyquist", x: 0.5 }],
+            series: vec![Series {
+                label: "line",
+                x: &x,
+                y: &y,
+            }],
+            markers: vec![Marker {
+                label: "Nyquist",
+                x: 0.5,
+            }],
             y_range: Some((0.0, 1.05)),
             size_px: (400, 300),
         };

@@ -36,7 +36,11 @@ impl MtfCurves {
         points: usize,
     ) -> Result<Self> {
         if !(wavelength_um.is_finite() && wavelength_um > 0.0) {
-            return Err(Error::param("--wavelength-um", wavelength_um, "a wavelength > 0 µm"));
+            return Err(Error::param(
+                "--wavelength-um",
+                wavelength_um,
+                "a wavelength > 0 µm",
+            ));
         }
         if points < 2 {
             return Err(Error::param("--points", points, "at least 2"));
@@ -105,7 +109,10 @@ impl MtfCurves {
 
     /// Plots the curves as a PNG with the detector Nyquist frequency marked.
     pub fn write_png(&self, path: &Path, sensor_name: &str) -> Result<()> {
-        let title = format!("{sensor_name}: transfer functions at {:.3} µm", self.wavelength_um);
+        let title = format!(
+            "{sensor_name}: transfer functions at {:.3} µm",
+            self.wavelength_um
+        );
         let series = self
             .columns
             .iter()

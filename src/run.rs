@@ -119,7 +119,9 @@ fn progress_bar(quiet: bool, what: &str) -> Option<ProgressBar> {
         return None;
     }
     let pb = ProgressBar::new(1);
-    if let Ok(style) = ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} bands ({elapsed})") {
+    if let Ok(style) =
+        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} bands ({elapsed})")
+    {
         pb.set_style(style.progress_chars("=> "));
     }
     pb.set_message(what.to_string());
@@ -184,11 +186,22 @@ pub fn run(args: RunArgs) -> Result<()> {
     let geometry = match &args.fov_deg {
         Some(t) => {
             let (h, v) = super::parse_pair(t, "--fov-deg")?;
-            Some(Geometry { fov_x_deg: h, fov_y_deg: v, range_m: None })
+            Some(Geometry {
+                fov_x_deg: h,
+                fov_y_deg: v,
+                range_m: None,
+            })
         }
         None => None,
     };
-    run_file(&sensor, &args.input, &args.output, args.seed, geometry, args.quiet)
+    run_file(
+        &sensor,
+        &args.input,
+        &args.output,
+        args.seed,
+        geometry,
+        args.quiet,
+    )
 }
 
 /// `eoir demo`: the thermal scene, sized to cover the sensor at `oversampling` scene samples
@@ -201,7 +214,10 @@ pub fn demo(args: DemoArgs) -> Result<()> {
     let response = sensor.spectral_response()?;
     let (lo, hi) = response.support_um();
     if !(lo.is_finite() && hi.is_finite()) {
-        bail!("sensor `{}` has an unbounded spectral response; give it a [filter]", sensor.name);
+        bail!(
+            "sensor `{}` has an unbounded spectral response; give it a [filter]",
+            sensor.name
+        );
     }
     // Bands every ~0.02 µm across the response, at least 24.
     let bands = (((hi - lo) / 0.02).ceil() as usize + 1).max(24);
@@ -232,7 +248,14 @@ pub fn demo(args: DemoArgs) -> Result<()> {
             hi
         );
     }
-    run_file(&sensor, &scene_path, &args.output, args.seed, None, args.quiet)
+    run_file(
+        &sensor,
+        &scene_path,
+        &args.output,
+        args.seed,
+        None,
+        args.quiet,
+    )
 }
 
 /// `eoir scene`.
@@ -255,7 +278,11 @@ pub fn scene(args: SceneArgs) -> Result<()> {
         "ramp" => synthetic::ramp(&params, args.t_low_k, args.t_high_k)?,
         other => bail!(
             "unknown scene kind `{other}`; choose one of: {}",
-            synthetic::KINDS.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
+            synthetic::KINDS
+                .iter()
+                .map(|(n, _)| *n)
+                .collect::<Vec<_>>()
+                .join(", ")
         ),
     };
     eoir::io::write_cube(&args.output, &cube)?;

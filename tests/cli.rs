@@ -23,7 +23,11 @@ fn mtf_writes_csv_with_component_columns_and_png() {
         .arg(&png)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = std::fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
     assert_eq!(
@@ -60,7 +64,10 @@ fn invalid_sensor_file_gives_one_error_line_naming_the_field() {
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(err.trim().lines().count(), 1, "{err}");
-    assert!(err.contains("optics.f_number") && err.contains("bad.toml"), "{err}");
+    assert!(
+        err.contains("optics.f_number") && err.contains("bad.toml"),
+        "{err}"
+    );
     assert!(!err.contains("panicked"));
 }
 

@@ -43,7 +43,10 @@ fn minimal_file_loads_with_defaults() {
     assert!(s.diffraction.enabled);
     assert!((s.detector.fill_factor() - (20.0f64 / 24.0).powi(2)).abs() < 1e-12);
     let otf = SystemOtf::new(&s).unwrap();
-    assert_eq!(otf.components(), &[Component::Diffraction, Component::Detector]);
+    assert_eq!(
+        otf.components(),
+        &[Component::Diffraction, Component::Detector]
+    );
 }
 
 #[test]
@@ -51,9 +54,18 @@ fn impossible_values_name_the_field() {
     let cases: &[(&str, &[&str])] = &[
         ("optics.f_number=0", &["optics.f_number", "0"]),
         ("optics.f_number=-2", &["optics.f_number"]),
-        ("optics.obscuration_ratio=1.0", &["optics.obscuration_ratio", "[0, 1)"]),
-        ("detector.active_width_m=30e-6", &["detector.active_width_m", "fill factor"]),
-        ("detector.integration_time_s=-1e-3", &["detector.integration_time_s"]),
+        (
+            "optics.obscuration_ratio=1.0",
+            &["optics.obscuration_ratio", "[0, 1)"],
+        ),
+        (
+            "detector.active_width_m=30e-6",
+            &["detector.active_width_m", "fill factor"],
+        ),
+        (
+            "detector.integration_time_s=-1e-3",
+            &["detector.integration_time_s"],
+        ),
         ("detector.full_well_e=-5", &["detector.full_well_e"]),
         ("detector.bits=0", &["detector.bits"]),
         ("jitter.sigma_rad=-1", &["jitter.sigma_rad"]),
@@ -74,7 +86,10 @@ fn unknown_keys_are_errors_with_line_numbers() {
     let text = format!("{MINIMAL}\n[optcs]\nx = 1\n");
     assert_one_line_error(parse(&text, &[]), &["optcs"]);
     // Unknown key through --set.
-    assert_one_line_error(parse(MINIMAL, &["optics.focal_lenght_m=0.2"]), &["focal_lenght_m"]);
+    assert_one_line_error(
+        parse(MINIMAL, &["optics.focal_lenght_m=0.2"]),
+        &["focal_lenght_m"],
+    );
     // Unknown spectrum kind.
     let text = MINIMAL.replace("kind = \"top_hat\"", "kind = \"tophat\"");
     assert_one_line_error(parse(&text, &[]), &["tophat"]);
@@ -108,7 +123,11 @@ fn overrides_change_values_and_enable_sections() {
 
 #[test]
 fn resolved_config_round_trips_through_toml() {
-    let s = parse(MINIMAL, &["defocus.w020_waves=0.5", "motion.smear_rad=1e-4"]).unwrap();
+    let s = parse(
+        MINIMAL,
+        &["defocus.w020_waves=0.5", "motion.smear_rad=1e-4"],
+    )
+    .unwrap();
     let text = s.to_toml_string().unwrap();
     let back = parse(&text, &[]).unwrap();
     assert_eq!(s, back);
@@ -121,7 +140,9 @@ fn embedded_presets_load_and_validate() {
         assert!(!s.description.is_empty());
         SystemOtf::new(&s).unwrap();
     }
-    let e = presets::load("no-such-sensor", &[]).unwrap_err().to_string();
+    let e = presets::load("no-such-sensor", &[])
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("multimir"), "{e}");
 }
 
@@ -130,7 +151,10 @@ fn multimir_geometry_matches_the_report() {
     // FOI report table 3.1: 100 mm optics, 5.3° x 4.0° field of view.
     let s = presets::load("multimir", &[]).unwrap();
     let (h, v) = s.fov_deg();
-    assert!((h - 5.3).abs() < 0.05 && (v - 4.0).abs() < 0.05, "{h} x {v}");
+    assert!(
+        (h - 5.3).abs() < 0.05 && (v - 4.0).abs() < 0.05,
+        "{h} x {v}"
+    );
 }
 
 /// The real-FFT grid must list the frequencies of the DFT bins: bin j of an N-point DFT

@@ -99,21 +99,23 @@ impl RealFft2 {
         transpose::transpose(&t, s, rows, hc);
         let norm = 1.0 / (rows * cols) as f64;
         let o = out.as_slice_mut().expect("standard layout");
-        o.par_chunks_mut(cols).zip(s.par_chunks_mut(hc)).for_each_init(
-            || self.c2r.make_scratch_vec(),
-            |scratch, (o, i)| {
-                // realfft requires exactly real DC (and Nyquist for even lengths) bins; for
-                // the spectrum of a real image they are real up to rounding.
-                i[0].im = 0.0;
-                if cols % 2 == 0 {
-                    i[hc - 1].im = 0.0;
-                }
-                let _ = self.c2r.process_with_scratch(i, o, scratch);
-                for v in o.iter_mut() {
-                    *v *= norm;
-                }
-            },
-        );
+        o.par_chunks_mut(cols)
+            .zip(s.par_chunks_mut(hc))
+            .for_each_init(
+                || self.c2r.make_scratch_vec(),
+                |scratch, (o, i)| {
+                    // realfft requires exactly real DC (and Nyquist for even lengths) bins; for
+                    // the spectrum of a real image they are real up to rounding.
+                    i[0].im = 0.0;
+                    if cols % 2 == 0 {
+                        i[hc - 1].im = 0.0;
+                    }
+                    let _ = self.c2r.process_with_scratch(i, o, scratch);
+                    for v in o.iter_mut() {
+                        *v *= norm;
+                    }
+                },
+            );
     }
 
     /// Complex transforms of every length-`rows` run in `data`, in parallel.
@@ -153,7 +155,10 @@ mod tests {
                             acc += x[[y, xx]] * Complex64::new(ph.cos(), ph.sin());
                         }
                     }
-                    assert!((acc - spec[[v, u]]).norm() < 1e-9, "{rows}x{cols} bin {v},{u}");
+                    assert!(
+                        (acc - spec[[v, u]]).norm() < 1e-9,
+                        "{rows}x{cols} bin {v},{u}"
+                    );
                 }
             }
             let mut back = Array2::zeros((rows, cols));

@@ -3,10 +3,11 @@
 //! Exactly the flow of DESIGN.md §1:
 //!
 //! 1. **Spectral weights** ([`SpectralWeights`]): electrons per unit radiance for every
-//!    input band, `w_b = t_int · A_det · π/(4N²)(1−R²) · S(λ_b) · λ_b/(hc) · Δλ_b` with
-//!    `S = τ_filter τ_optics τ_atm η` and `Δλ_b` the trapezoid weight of the band (1 for
-//!    band-integrated input).
-//! 2. **Frequency-domain accumulation**: each band is mirror-padded, transformed once
+//!    input band, `w_b = t_int · A_det · π/(4N²)(1−R²) / (hc) · ∫ S(λ) λ φ_b(λ) dλ` with
+//!    `S = τ_filter τ_optics τ_atm η` and φ_b the linear-interpolation hat of band b
+//!    ([`hat_weights`]; for band-integrated input `S(λ_b) λ_b / (hc)` per bin).
+//! 2. **Frequency-domain accumulation**: each band is padded (mirror extensions
+//!    cross-faded across the pad, so the circular frame has no jump), transformed once
 //!    (real 2-D FFT), multiplied by `w_b · OTF(u, v; λ_b)` and summed.
 //! 3. **One inverse transform per frame** onto the detector grid ([`Sampling`]): for an
 //!    integer ratio k of detector to scene sampling the accumulated spectrum is shifted by
@@ -34,7 +35,7 @@ use crate::io::CubeReader;
 use crate::radiometry;
 use crate::scene::{CubeMeta, Geometry, RadianceUnits};
 use crate::sensor::{Component, FrequencyGrid, SensorConfig, SystemOtf};
-use crate::spectrum::{trapezoid_weights, Spectrum};
+use crate::spectrum::Spectrum;
 
 use fft::RealFft2;
 
@@ -63,26 +64,27 @@ impl SpectralWeights {
         let response = sensor.spectral_response()?;
         check_coverage(&response, &meta.wavelength_um)?;
         let etendue_time = sensor.camera_equation()?.etendue_time();
-        let dl = match meta.units {
-            RadianceUnits::SpectralPerUm => trapezoid_weights(&meta.wavelength_um).map_err(|e| {
-                Error::param(
-                    "input wavelength grid",
-                    format!("{} bands", meta.bands()),
-                    format!(
-                        "at least 2 strictly increasing wavelengths for spectral radiance ({e})"
-                    ),
-                )
-            })?,
-            RadianceUnits::BandIntegrated => vec![1.0; meta.bands()],
+        let per_joule = 1e-6 / (PLANCK_H * SPEED_OF_LIGHT_C); // λ/(hc) with λ in µm
+        let wl = &meta.wavelength_um;
+        let electrons_per_unit = match meta.units {
+            RadianceUnits::SpectralPerUm => {
+                if wl.len() < 2 {
+                    return Err(Error::param(
+                        "input wavelength grid",
+                        format!("{} band", wl.len()),
+                        "at least 2 wavelengths for spectral radiance (W m-2 sr-1 µm-1); a single band must be band-integrated (W m-2 sr-1)",
+                    ));
+                }
+                hat_weights(&response, wl)
+                    .into_iter()
+                    .map(|w| etendue_time * per_joule * w)
+                    .collect()
+            }
+            RadianceUnits::BandIntegrated => wl
+                .iter()
+                .map(|l| etendue_time * per_joule * response.eval(*l) * l)
+                .collect(),
         };
-        let electrons_per_unit = meta
-            .wavelength_um
-            .iter()
-            .zip(&dl)
-            .map(|(l, d)| {
-                etendue_time * response.eval(*l) * (l * 1e-6) / (PLANCK_H * SPEED_OF_LIGHT_C) * d
-            })
-            .collect();
         Ok(SpectralWeights {
             wavelength_um: meta.wavelength_um.clone(),
             electrons_per_unit,
@@ -97,6 +99,47 @@ impl SpectralWeights {
     }
 }
 
+/// Product-integration weights `∫ S(λ) λ φ_b(λ) dλ` (µm²) for each band b, with φ_b the
+/// hat function that is 1 at λ_b and falls linearly to 0 at the neighbouring bands.
+///
+/// `Σ_b w_b L_b` is then the exact integral of `S(λ) λ L(λ)` for the piecewise-linear
+/// interpolant of the sampled radiance L: the sensor's known response (sharp filter edges,
+/// detector cutoff) is integrated exactly instead of being sampled at the band centres,
+/// so the only error left is the curvature of the radiance between bands. (The
+/// trapezoid rule `S(λ_b) λ_b Δλ_b` is the same rule with S also interpolated linearly;
+/// it errs by ~1e-4 at filter edges even with 100 bands over the band.)
+pub fn hat_weights(response: &Spectrum, wavelength_um: &[f64]) -> Vec<f64> {
+    let bp = response.breakpoints_um();
+    let n = wavelength_um.len();
+    (0..n)
+        .map(|b| {
+            let c = wavelength_um[b];
+            let mut w = 0.0;
+            if b > 0 {
+                let a = wavelength_um[b - 1];
+                w += radiometry::integrate(
+                    |l| response.eval(l) * l * (l - a) / (c - a),
+                    a,
+                    c,
+                    &bp,
+                    1e-11,
+                );
+            }
+            if b + 1 < n {
+                let d = wavelength_um[b + 1];
+                w += radiometry::integrate(
+                    |l| response.eval(l) * l * (d - l) / (d - c),
+                    c,
+                    d,
+                    &bp,
+                    1e-11,
+                );
+            }
+            w
+        })
+        .collect()
+}
+
 /// Checks that the wavelength grid `[first, last]` covers the response `S` weighted by λ
 /// (photon counting of a flat spectral radiance) except for at most
 /// [`MAX_UNCOVERED_RESPONSE`] of it; the error names the uncovered range(s).
@@ -104,7 +147,13 @@ pub fn check_coverage(response: &Spectrum, wavelength_um: &[f64]) -> Result<()> 
     let (lo, hi) = response.support_um();
     let (first, last) = match (wavelength_um.first(), wavelength_um.last()) {
         (Some(a), Some(b)) => (*a, *b),
-        _ => return Err(Error::param("input wavelength grid", "empty", "at least one band")),
+        _ => {
+            return Err(Error::param(
+                "input wavelength grid",
+                "empty",
+                "at least one band",
+            ))
+        }
     };
     // An unbounded response (e.g. no filter and a flat QE) cannot be checked: the grid
     // then defines the band.
@@ -121,8 +170,16 @@ pub fn check_coverage(response: &Spectrum, wavelength_um: &[f64]) -> Result<()> 
             "some wavelength where filter, optics, atmosphere and QE are all non-zero",
         ));
     }
-    let below = if first > lo { radiometry::integrate(w, lo, first.min(hi), &bp, 1e-9) } else { 0.0 };
-    let above = if last < hi { radiometry::integrate(w, last.max(lo), hi, &bp, 1e-9) } else { 0.0 };
+    let below = if first > lo {
+        radiometry::integrate(w, lo, first.min(hi), &bp, 1e-9)
+    } else {
+        0.0
+    };
+    let above = if last < hi {
+        radiometry::integrate(w, last.max(lo), hi, &bp, 1e-9)
+    } else {
+        0.0
+    };
     let missing = (below + above) / total;
     if missing > MAX_UNCOVERED_RESPONSE {
         let mut ranges = Vec::new();
@@ -164,7 +221,13 @@ pub struct AxisSampling {
 }
 
 impl AxisSampling {
-    fn new(scene_len: usize, scene_ifov: f64, detector_len: usize, detector_ifov: f64, axis: &str) -> Result<Self> {
+    fn new(
+        scene_len: usize,
+        scene_ifov: f64,
+        detector_len: usize,
+        detector_ifov: f64,
+        axis: &str,
+    ) -> Result<Self> {
         let ratio = detector_ifov / scene_ifov;
         let scene_fov = scene_len as f64 * scene_ifov;
         let det_fov = detector_len as f64 * detector_ifov;
@@ -180,7 +243,14 @@ impl AxisSampling {
             ));
         }
         let first = (scene_len as f64 - 1.0) / 2.0 - (detector_len as f64 - 1.0) / 2.0 * ratio;
-        Ok(AxisSampling { scene_len, detector_len, ratio, first, pad_before: 0, padded_len: scene_len })
+        Ok(AxisSampling {
+            scene_len,
+            detector_len,
+            ratio,
+            first,
+            pad_before: 0,
+            padded_len: scene_len,
+        })
     }
 
     /// The integer ratio if k is an integer (to 1e-9), else `None`.
@@ -227,7 +297,65 @@ impl Sampling {
             ));
         }
         let integer = x.integer_ratio().is_some() && y.integer_ratio().is_some();
-        Ok(Sampling { y, x, scene_ifov_rad: (dy, dx), integer, warnings })
+        Ok(Sampling {
+            y,
+            x,
+            scene_ifov_rad: (dy, dx),
+            integer,
+            warnings,
+        })
+    }
+}
+
+/// One padded sample as a blend of two image samples: `w·x[a] + (1 − w)·x[b]`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Tap {
+    a: usize,
+    b: usize,
+    w: f64,
+}
+
+/// How the padded FFT frame is filled along one axis.
+///
+/// Inside the image: the image. In the pad (which, the FFT being circular, runs from the
+/// image's last sample round to its first): a raised-cosine cross-fade from the mirror
+/// image of the trailing edge to the mirror image of the leading edge. Next to each edge
+/// the pad is a pure mirror (continuous, as a half-sample-symmetric extension), and the
+/// periodic frame has no jump where the two mirrors meet — a plain mirror pad has one
+/// there, only P samples from the image, which any transfer function that is not small at
+/// the Nyquist frequency rings on.
+#[derive(Debug, Clone, PartialEq)]
+struct PadMap {
+    taps: Vec<Tap>,
+}
+
+impl PadMap {
+    fn new(n: usize, pad_before: usize, padded_len: usize) -> Self {
+        let pad_total = padded_len - n;
+        let taps = (0..padded_len)
+            .map(|c| {
+                let t = c as isize - pad_before as isize;
+                if t >= 0 && (t as usize) < n {
+                    return Tap {
+                        a: t as usize,
+                        b: t as usize,
+                        w: 1.0,
+                    };
+                }
+                // Distance into the pad from the trailing edge, 0 … pad_total − 1.
+                let q = (t - n as isize).rem_euclid(padded_len as isize) as usize;
+                let trailing = mirror_index((n + q) as isize, n);
+                let leading = mirror_index(q as isize - pad_total as isize, n);
+                let w = 0.5
+                    * (1.0 + (std::f64::consts::PI * (q as f64 + 0.5) / pad_total as f64).cos());
+                Tap {
+                    a: trailing,
+                    b: leading,
+                    w,
+                }
+            })
+            .collect();
+        PadMap { taps }
     }
 }
 
@@ -258,15 +386,18 @@ pub fn next_fast_len(n: usize) -> usize {
 
 /// Pad width (samples) along one axis so that wrap-around stays below `tolerance`.
 ///
-/// The FFT is circular: a scene sample at one edge leaks into the other edge through the
-/// padding, at a distance of at least 2P samples (mirror padding puts a copy of the edge
-/// sample one sample outside it). The line-spread function along the axis is computed
-/// numerically from the system OTF (1-D inverse FFT of OTF(f, 0) sampled on a long grid of
-/// the scene spacing) at the given wavelengths, and P is the smallest width for which
-/// `Σ_{|n| ≥ 2P} |lsf[n]| ≤ tolerance` — so no single sample beyond that distance carries
-/// more than `tolerance` of an edge's excess. Components that are flat in frequency at high
-/// frequency (aerosol) are excluded: their scattered fraction spreads evenly over the
-/// padded frame by design (DESIGN.md §5).
+/// The FFT is circular: a scene sample at one edge leaks into the opposite edge through
+/// the padding, at a distance of at least 2P samples (the pad, filled as in `PadMap`,
+/// mirrors the edge sample one sample outside it). The line-spread function (LSF) along the axis is
+/// computed numerically from the system OTF (1-D inverse FFT of OTF(f, 0) sampled on a long
+/// grid at the scene spacing) at the given wavelengths, normalised to unit sum, and P is
+/// the smallest width with `|lsf[n]| ≤ tolerance` for every |n| ≥ 2P: a one-sample-wide
+/// feature at one edge then changes the far edge by at most `tolerance` of its excess.
+/// Diffraction LSF tails fall only as 1/n², so the *summed* tail of a wide bright region
+/// converges slowly; that light is physically spread by the optics, and mirror padding
+/// supplies it from the nearest scene content rather than from the opposite edge.
+/// Components that are flat in frequency at high frequency (aerosol) are excluded: their
+/// scattered fraction spreads evenly over the padded frame by design (DESIGN.md §5).
 pub fn pad_width(
     otf: &SystemOtf,
     spacing_rad: f64,
@@ -275,9 +406,9 @@ pub fn pad_width(
     tolerance: f64,
     max_pad: usize,
 ) -> usize {
-    let m: usize = (16 * max_pad).next_power_of_two().max(1 << 14);
-    let mut worst = 0usize;
+    let m: usize = (8 * max_pad).next_power_of_two().max(1 << 12);
     let fft = realfft::RealFftPlanner::<f64>::new().plan_fft_inverse(m);
+    let mut worst = 1usize;
     for &lambda in wavelengths_um {
         let mut spec: Vec<Complex64> = (0..m / 2 + 1)
             .map(|u| {
@@ -292,31 +423,20 @@ pub fn pad_width(
                 Complex64::new(v, 0.0)
             })
             .collect();
+        spec[m / 2].im = 0.0;
         let mut lsf = vec![0.0; m];
         if fft.process(&mut spec, &mut lsf).is_err() {
             return max_pad;
         }
-        let norm: f64 = lsf.iter().sum::<f64>().abs().max(f64::MIN_POSITIVE);
-        // Tail beyond distance d, counting both sides: lsf[d..m-d].
-        let mut tail: f64 = 0.0;
-        let mut p = max_pad;
-        // Walk inward from the far end: tail(d) for d from m/2 down to 1.
-        let mut tails = vec![0.0; m / 2 + 1];
-        for d in (1..=m / 2).rev() {
-            tail += lsf[d].abs() / norm;
-            if d != m - d {
-                tail += lsf[m - d].abs() / norm;
-            }
-            tails[d] = tail;
-        }
-        for cand in 1..=max_pad {
-            let d = 2 * cand;
-            if d > m / 2 || tails[d] <= tolerance {
-                p = cand;
-                break;
-            }
-        }
-        worst = worst.max(p);
+        let norm = lsf.iter().sum::<f64>().abs().max(f64::MIN_POSITIVE);
+        // The largest |n| (folded: distance min(n, m − n)) whose sample exceeds the tolerance.
+        let far = (1..m)
+            .filter(|n| lsf[*n].abs() / norm > tolerance)
+            .map(|n| n.min(m - n))
+            .max()
+            .unwrap_or(0);
+        // Need 2P > far.
+        worst = worst.max((far / 2 + 1).min(max_pad));
     }
     worst
 }
@@ -348,6 +468,8 @@ pub struct Imager {
     sampling: Sampling,
     fft: RealFft2,
     grid: FrequencyGrid,
+    pad_y: PadMap,
+    pad_x: PadMap,
 }
 
 impl Imager {
@@ -372,15 +494,43 @@ impl Imager {
             _ => vec![],
         };
         let (dy, dx) = sampling.scene_ifov_rad;
-        let py = pad_width(&otf, dy, false, &extremes, wrap_tolerance, 4 * meta.rows.max(8));
-        let px = pad_width(&otf, dx, true, &extremes, wrap_tolerance, 4 * meta.cols.max(8));
-        for (ax, p, n) in [(&mut sampling.y, py, meta.rows), (&mut sampling.x, px, meta.cols)] {
+        let py = pad_width(
+            &otf,
+            dy,
+            false,
+            &extremes,
+            wrap_tolerance,
+            4 * meta.rows.max(8),
+        );
+        let px = pad_width(
+            &otf,
+            dx,
+            true,
+            &extremes,
+            wrap_tolerance,
+            4 * meta.cols.max(8),
+        );
+        for (ax, p, n) in [
+            (&mut sampling.y, py, meta.rows),
+            (&mut sampling.x, px, meta.cols),
+        ] {
             ax.pad_before = p;
             ax.padded_len = next_fast_len(n + 2 * p);
         }
         let fft = RealFft2::new(sampling.y.padded_len, sampling.x.padded_len);
         let grid = FrequencyGrid::real_fft(sampling.y.padded_len, sampling.x.padded_len, dy, dx);
-        Ok(Imager { sensor: sensor.clone(), otf, weights, sampling, fft, grid })
+        let pad_y = PadMap::new(meta.rows, sampling.y.pad_before, sampling.y.padded_len);
+        let pad_x = PadMap::new(meta.cols, sampling.x.pad_before, sampling.x.padded_len);
+        Ok(Imager {
+            sensor: sensor.clone(),
+            otf,
+            weights,
+            sampling,
+            fft,
+            grid,
+            pad_y,
+            pad_x,
+        })
     }
 
     /// The spectral weights in use.
@@ -412,7 +562,10 @@ impl Imager {
         let mut spec = Array2::<Complex64>::zeros(self.fft.spectrum_shape());
         let mut padded = Array2::<f64>::zeros((ny, nx));
         let mut otf_buf = Array2::<f64>::zeros(self.fft.spectrum_shape());
-        let mut stats = ImagingStats { padded_shape: (ny, nx), ..Default::default() };
+        let mut stats = ImagingStats {
+            padded_shape: (ny, nx),
+            ..Default::default()
+        };
         let active = self.weights.active_bands();
         for (i, &b) in active.iter().enumerate() {
             let t0 = Instant::now();
@@ -423,9 +576,12 @@ impl Imager {
             let t2 = Instant::now();
             let w = self.weights.electrons_per_unit[b];
             grid_otf.at_wavelength_into(self.weights.wavelength_um[b], &mut otf_buf);
-            ndarray::Zip::from(&mut acc).and(&spec).and(&otf_buf).par_for_each(|a, s, o| {
-                *a += s * (w * o);
-            });
+            ndarray::Zip::from(&mut acc)
+                .and(&spec)
+                .and(&otf_buf)
+                .par_for_each(|a, s, o| {
+                    *a += s * (w * o);
+                });
             let t3 = Instant::now();
             stats.read_s += (t1 - t0).as_secs_f64();
             stats.fft_s += (t2 - t1).as_secs_f64();
@@ -446,17 +602,30 @@ impl Imager {
         Ok((e, stats))
     }
 
-    /// Mirror-pads a band plane into the FFT buffer.
+    /// The padded FFT frame of one band plane, as the engine transforms it (rows and
+    /// columns as in [`Imager::sampling`]).
+    pub fn padded_band(&self, plane: ArrayView2<f32>) -> Array2<f64> {
+        let mut out = Array2::zeros((self.sampling.y.padded_len, self.sampling.x.padded_len));
+        self.pad_into(plane, &mut out);
+        out
+    }
+
+    /// Pads a band plane into the FFT buffer (see `PadMap`).
     fn pad_into(&self, plane: ArrayView2<f32>, out: &mut Array2<f64>) {
-        let (rows, cols) = plane.dim();
-        let (py, px) = (self.sampling.y.pad_before as isize, self.sampling.x.pad_before as isize);
-        let col_map: Vec<usize> = (0..out.ncols() as isize).map(|c| mirror_index(c - px, cols)).collect();
-        out.axis_iter_mut(Axis(0)).into_par_iter().enumerate().for_each(|(r, mut row)| {
-            let src = plane.row(mirror_index(r as isize - py, rows));
-            for (o, &c) in row.iter_mut().zip(&col_map) {
-                *o = src[c] as f64;
-            }
-        });
+        let ym = &self.pad_y;
+        let xm = &self.pad_x;
+        out.axis_iter_mut(Axis(0))
+            .into_par_iter()
+            .zip(&ym.taps)
+            .for_each(|(mut row, ty)| {
+                for (o, tx) in row.iter_mut().zip(&xm.taps) {
+                    let v = |r: usize| {
+                        let src = plane.row(r);
+                        tx.w * src[tx.a] as f64 + (1.0 - tx.w) * src[tx.b] as f64
+                    };
+                    *o = ty.w * v(ty.a) + (1.0 - ty.w) * v(ty.b);
+                }
+            });
     }
 
     /// Integer ratio: shift by the fractional part of the first pixel position with a
@@ -470,7 +639,11 @@ impl Imager {
         let (fy, fx) = (start_y - start_y.floor(), start_x - start_x.floor());
         if fy != 0.0 || fx != 0.0 {
             let ramp = |n: usize, s: f64, k: usize, signed: bool| -> Complex64 {
-                let kk = if signed && k > n / 2 { k as f64 - n as f64 } else { k as f64 };
+                let kk = if signed && k > n / 2 {
+                    k as f64 - n as f64
+                } else {
+                    k as f64
+                };
                 if n % 2 == 0 && k == n / 2 {
                     Complex64::new((std::f64::consts::PI * s).cos(), 0.0)
                 } else {
@@ -478,17 +651,23 @@ impl Imager {
                 }
             };
             let rx: Vec<Complex64> = (0..nx / 2 + 1).map(|k| ramp(nx, fx, k, false)).collect();
-            acc.axis_iter_mut(Axis(0)).into_par_iter().enumerate().for_each(|(v, mut row)| {
-                let r = ramp(ny, fy, v, true);
-                for (a, x) in row.iter_mut().zip(&rx) {
-                    *a *= r * x;
-                }
-            });
+            acc.axis_iter_mut(Axis(0))
+                .into_par_iter()
+                .enumerate()
+                .for_each(|(v, mut row)| {
+                    let r = ramp(ny, fy, v, true);
+                    for (a, x) in row.iter_mut().zip(&rx) {
+                        *a *= r * x;
+                    }
+                });
         }
         let mut img = Array2::<f64>::zeros((ny, nx));
         self.fft.inverse(acc, &mut img);
         let (y0, x0) = (start_y.floor() as usize, start_x.floor() as usize);
-        let (ky, kx) = (sy.integer_ratio().unwrap_or(1), sx.integer_ratio().unwrap_or(1));
+        let (ky, kx) = (
+            sy.integer_ratio().unwrap_or(1),
+            sx.integer_ratio().unwrap_or(1),
+        );
         Array2::from_shape_fn((sy.detector_len, sx.detector_len), |(i, j)| {
             img[[y0 + i * ky, x0 + j * kx]]
         })
@@ -512,7 +691,11 @@ impl Imager {
                     let w = if ny % 2 == 0 && v == ny / 2 {
                         Complex64::new((std::f64::consts::PI * y).cos(), 0.0)
                     } else {
-                        let vv = if v > ny / 2 { v as f64 - ny as f64 } else { v as f64 };
+                        let vv = if v > ny / 2 {
+                            v as f64 - ny as f64
+                        } else {
+                            v as f64
+                        };
                         Complex64::from_polar(1.0, two_pi * vv * y / ny as f64)
                     };
                     for (r, e) in row.iter_mut().zip(acc.row(v)) {
@@ -541,12 +724,15 @@ impl Imager {
             .collect();
         let norm = 1.0 / (nx * ny) as f64;
         let mut out = Array2::<f64>::zeros((sy.detector_len, sx.detector_len));
-        out.axis_iter_mut(Axis(0)).into_par_iter().zip(&a_rows).for_each(|(mut o, a)| {
-            for (v, b) in o.iter_mut().zip(&basis) {
-                let s: f64 = a.iter().zip(b).map(|(p, q)| (p * q).re).sum();
-                *v = s * norm;
-            }
-        });
+        out.axis_iter_mut(Axis(0))
+            .into_par_iter()
+            .zip(&a_rows)
+            .for_each(|(mut o, a)| {
+                for (v, b) in o.iter_mut().zip(&basis) {
+                    let s: f64 = a.iter().zip(b).map(|(p, q)| (p * q).re).sum();
+                    *v = s * norm;
+                }
+            });
         out
     }
 

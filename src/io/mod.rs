@@ -180,7 +180,8 @@ where
     F: FnOnce(&Path) -> Result<()>,
 {
     let tmp = temp_path(path);
-    let result = write(&tmp).and_then(|_| std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)));
+    let result =
+        write(&tmp).and_then(|_| std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)));
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
@@ -203,7 +204,10 @@ pub struct MemoryCube {
 impl MemoryCube {
     /// One frame.
     pub fn new(cube: Cube) -> Self {
-        MemoryCube { frames: vec![cube], frame_time_s: None }
+        MemoryCube {
+            frames: vec![cube],
+            frame_time_s: None,
+        }
     }
 
     /// A sequence of frames sharing wavelength grid, size and geometry.
@@ -211,14 +215,21 @@ impl MemoryCube {
         let first = frames
             .first()
             .ok_or_else(|| Error::param("sequence", "0 frames", "at least one frame"))?;
-        if let Some((i, _)) = frames.iter().enumerate().find(|(_, f)| f.meta != first.meta) {
+        if let Some((i, _)) = frames
+            .iter()
+            .enumerate()
+            .find(|(_, f)| f.meta != first.meta)
+        {
             return Err(Error::param(
                 "sequence",
                 format!("frame {i}"),
                 "the same wavelengths, size, units and geometry as frame 0",
             ));
         }
-        Ok(MemoryCube { frames, frame_time_s })
+        Ok(MemoryCube {
+            frames,
+            frame_time_s,
+        })
     }
 }
 
@@ -237,10 +248,19 @@ impl CubeReader for MemoryCube {
             Error::param("frame", frame, format!("< {} frames", self.frames.len()))
         })?;
         if band >= cube.meta.bands() {
-            return Err(Error::param("band", band, format!("< {} bands", cube.meta.bands())));
+            return Err(Error::param(
+                "band",
+                band,
+                format!("< {} bands", cube.meta.bands()),
+            ));
         }
         let plane = cube.data.index_axis(ndarray::Axis(0), band);
-        crate::scene::check_radiance_plane("memory cube", band, cube.meta.wavelength_um[band], plane)?;
+        crate::scene::check_radiance_plane(
+            "memory cube",
+            band,
+            cube.meta.wavelength_um[band],
+            plane,
+        )?;
         Ok(plane.to_owned())
     }
 }

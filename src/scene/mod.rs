@@ -109,7 +109,10 @@ impl CubeMeta {
             return fail("the cube has no bands (empty wavelength list)".into());
         }
         if self.rows == 0 || self.cols == 0 {
-            return fail(format!("the cube has zero size ({} x {})", self.rows, self.cols));
+            return fail(format!(
+                "the cube has zero size ({} x {})",
+                self.rows, self.cols
+            ));
         }
         for (i, w) in self.wavelength_um.iter().enumerate() {
             if !(w.is_finite() && *w > 0.0) {
@@ -131,7 +134,11 @@ impl CubeMeta {
                     self.wavelength_um.len()
                 ));
             }
-            if let Some((i, v)) = f.iter().enumerate().find(|(_, v)| !(v.is_finite() && **v > 0.0)) {
+            if let Some((i, v)) = f
+                .iter()
+                .enumerate()
+                .find(|(_, v)| !(v.is_finite() && **v > 0.0))
+            {
                 return fail(format!("fwhm[{i}] = {v} µm is not a positive number"));
             }
         }
@@ -140,7 +147,9 @@ impl CubeMeta {
         };
         for (name, v) in [("fov_x_deg", g.fov_x_deg), ("fov_y_deg", g.fov_y_deg)] {
             if !(v.is_finite() && v > 0.0 && v < 180.0) {
-                return fail(format!("field of view {name} = {v} must be in (0, 180) degrees"));
+                return fail(format!(
+                    "field of view {name} = {v} must be in (0, 180) degrees"
+                ));
             }
         }
         if let Some(r) = g.range_m {
@@ -169,7 +178,12 @@ impl Cube {
             return Err(Error::param(
                 "cube shape",
                 format!("[{b}, {r}, {c}]"),
-                format!("[{}, {}, {}] as the metadata says", meta.bands(), meta.rows, meta.cols),
+                format!(
+                    "[{}, {}, {}] as the metadata says",
+                    meta.bands(),
+                    meta.rows,
+                    meta.cols
+                ),
             ));
         }
         meta.validate("cube")?;

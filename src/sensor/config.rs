@@ -464,16 +464,18 @@ impl SensorConfig {
             for o in overrides {
                 apply_override(&mut value, o)?;
             }
-            config = toml::Value::Table(value).try_into().map_err(|e: toml::de::Error| {
-                Error::format(
-                    source,
-                    format!(
-                        "after --set {}: {}",
-                        overrides.join(" --set "),
-                        e.message().trim()
-                    ),
-                )
-            })?;
+            config = toml::Value::Table(value)
+                .try_into()
+                .map_err(|e: toml::de::Error| {
+                    Error::format(
+                        source,
+                        format!(
+                            "after --set {}: {}",
+                            overrides.join(" --set "),
+                            e.message().trim()
+                        ),
+                    )
+                })?;
         }
         config.base_dir = base_dir;
         config.validate().map_err(|e| match e {
@@ -586,7 +588,11 @@ impl SensorConfig {
             }
             if let Some(w) = m.angular_rate_rad_s {
                 if !w.is_finite() {
-                    return Err(Error::param("motion.angular_rate_rad_s", w, "a finite number"));
+                    return Err(Error::param(
+                        "motion.angular_rate_rad_s",
+                        w,
+                        "a finite number",
+                    ));
                 }
             }
             if let Some(v) = m.velocity_m_s {
@@ -607,7 +613,11 @@ impl SensorConfig {
                 }
             }
             if !m.direction_deg.is_finite() {
-                return Err(Error::param("motion.direction_deg", m.direction_deg, "a finite angle"));
+                return Err(Error::param(
+                    "motion.direction_deg",
+                    m.direction_deg,
+                    "a finite angle",
+                ));
             }
         }
         if let Some(j) = &self.jitter {
@@ -651,7 +661,11 @@ impl SensorConfig {
             if m.csv.is_some() == inline {
                 return Err(Error::param(
                     "measured",
-                    if inline { "csv and an inline table" } else { "nothing" },
+                    if inline {
+                        "csv and an inline table"
+                    } else {
+                        "nothing"
+                    },
                     "either `csv = \"file.csv\"` or both `freq_cy_per_mrad` and `mtf`",
                 ));
             }
@@ -775,16 +789,26 @@ fn toml_error(source: &str, text: &str, e: &toml::de::Error) -> Error {
 /// result is deserialised (unknown keys are errors).
 pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
     let (key, raw) = assignment.split_once('=').ok_or_else(|| {
-        Error::param("--set", assignment, "`section.key=value`, e.g. optics.f_number=2.5")
+        Error::param(
+            "--set",
+            assignment,
+            "`section.key=value`, e.g. optics.f_number=2.5",
+        )
     })?;
     let key = key.trim();
     let raw = raw.trim();
     let parts: Vec<&str> = key.split('.').map(str::trim).collect();
     if key.is_empty() || parts.iter().any(|p| p.is_empty()) {
-        return Err(Error::param("--set", assignment, "a dotted key such as optics.f_number"));
+        return Err(Error::param(
+            "--set",
+            assignment,
+            "a dotted key such as optics.f_number",
+        ));
     }
     let value = match toml::from_str::<toml::Table>(&format!("v = {raw}")) {
-        Ok(mut t) => t.remove("v").unwrap_or_else(|| toml::Value::String(raw.to_string())),
+        Ok(mut t) => t
+            .remove("v")
+            .unwrap_or_else(|| toml::Value::String(raw.to_string())),
         Err(_) => toml::Value::String(raw.to_string()),
     };
     let mut cur = table;

@@ -133,11 +133,14 @@ impl SystemOtf {
         if sensor.aberration.is_some() {
             components.push(Component::Aberration);
         }
-        let defocus = sensor.defocus.as_ref().map(|d| match (d.w020_waves, d.focus_shift_m) {
-            (Some(w), _) => DefocusAmount::Waves(w),
-            (None, Some(z)) => DefocusAmount::FocusShift(z),
-            (None, None) => DefocusAmount::Waves(0.0),
-        });
+        let defocus = sensor
+            .defocus
+            .as_ref()
+            .map(|d| match (d.w020_waves, d.focus_shift_m) {
+                (Some(w), _) => DefocusAmount::Waves(w),
+                (None, Some(z)) => DefocusAmount::FocusShift(z),
+                (None, None) => DefocusAmount::Waves(0.0),
+            });
         if defocus.is_some() {
             components.push(Component::Defocus);
         }
@@ -191,10 +194,9 @@ impl SystemOtf {
         if sensor.aerosol.is_some() {
             components.push(Component::Aerosol);
         }
-        let gaussian_sigma_rad = sensor
-            .gaussian
-            .as_ref()
-            .map_or((0.0, 0.0), |g| (g.sigma_rad, g.sigma_y_rad.unwrap_or(g.sigma_rad)));
+        let gaussian_sigma_rad = sensor.gaussian.as_ref().map_or((0.0, 0.0), |g| {
+            (g.sigma_rad, g.sigma_y_rad.unwrap_or(g.sigma_rad))
+        });
         if sensor.gaussian.is_some() {
             components.push(Component::Gaussian);
         }
@@ -252,9 +254,10 @@ impl SystemOtf {
             Turbulence::Horizontal { cn2, range_m } => {
                 atmosphere::fried_r0_horizontal(lambda_m, range_m, cn2).ok()
             }
-            Turbulence::Slant { weighted_cn2 } => {
-                Some(atmosphere::fried_r0_from_weighted_cn2(lambda_m, weighted_cn2))
-            }
+            Turbulence::Slant { weighted_cn2 } => Some(atmosphere::fried_r0_from_weighted_cn2(
+                lambda_m,
+                weighted_cn2,
+            )),
         }
     }
 
@@ -331,7 +334,14 @@ impl SystemOtf {
     }
 
     /// The product of the enabled components whose chromatic-ness is `chromatic`.
-    fn product(&self, fx: f64, fy: f64, wavelength_um: f64, chromatic: bool, r0: Option<f64>) -> f64 {
+    fn product(
+        &self,
+        fx: f64,
+        fy: f64,
+        wavelength_um: f64,
+        chromatic: bool,
+        r0: Option<f64>,
+    ) -> f64 {
         self.components
             .iter()
             .filter(|c| c.is_chromatic() == chromatic)
@@ -342,7 +352,8 @@ impl SystemOtf {
     /// The system OTF (product of all enabled components) at one frequency and wavelength.
     pub fn evaluate(&self, fx: f64, fy: f64, wavelength_um: f64) -> f64 {
         let r0 = self.fried_r0_m(wavelength_um);
-        self.product(fx, fy, wavelength_um, false, r0) * self.product(fx, fy, wavelength_um, true, r0)
+        self.product(fx, fy, wavelength_um, false, r0)
+            * self.product(fx, fy, wavelength_um, true, r0)
     }
 
     /// Prepares evaluation on a frequency grid: the wavelength-independent product is
@@ -377,7 +388,11 @@ impl FrequencyGrid {
     pub fn real_fft(rows: usize, cols: usize, dy_rad: f64, dx_rad: f64) -> Self {
         let fy = (0..rows)
             .map(|j| {
-                let jj = if j <= rows / 2 { j as f64 } else { j as f64 - rows as f64 };
+                let jj = if j <= rows / 2 {
+                    j as f64
+                } else {
+                    j as f64 - rows as f64
+                };
                 jj / (rows as f64 * dy_rad)
             })
             .collect();
@@ -412,7 +427,9 @@ impl GridOtf<'_> {
                 *v = if *a == 0.0 {
                     0.0
                 } else {
-                    a * self.otf.product(self.fx[k], self.fy[j], wavelength_um, true, r0)
+                    a * self
+                        .otf
+                        .product(self.fx[k], self.fy[j], wavelength_um, true, r0)
                 };
             });
     }

@@ -37,7 +37,11 @@ pub fn load(spec: &str, overrides: &[String]) -> Result<SensorConfig> {
             spec,
             format!(
                 "an existing sensor file or a preset name ({})",
-                PRESETS.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
+                PRESETS
+                    .iter()
+                    .map(|(n, _)| *n)
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ),
         )),
     }
