@@ -177,8 +177,9 @@ pub fn run(
 
 impl RunOutput {
     /// Writes the products into `dir` (created if needed), each file atomically:
-    /// `dn.tiff` (u16), `dn.png` (16-bit grey), `electrons_mean.tiff` (f32),
-    /// `config.toml` (the resolved sensor), `report.json`. A sequence writes
+    /// `dn.tiff` (u16), `dn.png` (16-bit grey), `electrons_mean.tiff` and
+    /// `electrons_mean.exr` (f32), `config.toml` (the resolved sensor), `report.json`, and
+    /// with the `hdf5` feature `products.h5` holding every product. A sequence writes
     /// `frame_NNNN_` prefixed DN and electron files. Returns the paths written.
     pub fn write(&self, dir: &Path) -> Result<Vec<PathBuf>> {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
@@ -198,6 +199,50 @@ impl RunOutput {
             written.push(p);
             let p = dir.join(format!("{prefix}electrons_mean.tiff"));
             raster::write_tiff_f32(&p, f.electrons_mean.view())?;
+            written.push(p);
+            let p = dir.join(format!("{prefix}electrons_mean.exr"));
+            raster::write_exr_f32(&p, f.electrons_mean.view(), "electrons_mean")?;
+            written.push(p);
+        }
+        #[cfg(feature = "hdf5")]
+        {
+            use crate::io::hdf5::{write_bundle, BundleData, BundleItem};
+            let mut items = Vec::new();
+            let names: Vec<(String, String)> = (0..self.frames.len())
+                .map(|i| {
+                    if single {
+                        ("dn".to_string(), "electrons_mean".to_string())
+                    } else {
+                        (
+                            format!("frame_{i:04}_dn"),
+                            format!("frame_{i:04}_electrons_mean"),
+                        )
+                    }
+                })
+                .collect();
+            for (f, (dn, el)) in self.frames.iter().zip(&names) {
+                items.push(BundleItem {
+                    name: dn,
+                    data: BundleData::U16(f.dn.view()),
+                    attrs: vec![("units", "DN".to_string())],
+                });
+                items.push(BundleItem {
+                    name: el,
+                    data: BundleData::F32(f.electrons_mean.view()),
+                    attrs: vec![("units", "electrons (mean, noise-free)".to_string())],
+                });
+            }
+            let p = dir.join("products.h5");
+            let report = serde_json::to_string(&self.report)
+                .map_err(|e| Error::format(&p, e.to_string()))?;
+            write_bundle(
+                &p,
+                &items,
+                &[
+                    ("sensor", self.sensor.to_toml_string()?),
+                    ("report", report),
+                ],
+            )?;
             written.push(p);
         }
         let p = dir.join("config.toml");

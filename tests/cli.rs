@@ -93,3 +93,260 @@ fn missing_file_is_named() {
     assert!(err.contains("/nonexistent/s.toml"), "{err}");
     assert!(!Path::new("/nonexistent").exists());
 }
+
+/// Writes a small ENVI cube by hand (BSQ float32 little-endian) and returns the header path.
+fn write_envi(
+    dir: &Path,
+    name: &str,
+    bands: &[f64],
+    rows: usize,
+    cols: usize,
+    value: f32,
+    fov: Option<(f64, f64)>,
+) -> std::path::PathBuf {
+    let hdr = dir.join(format!("{name}.hdr"));
+    let img = dir.join(format!("{name}.img"));
+    let wl: Vec<String> = bands.iter().map(|w| w.to_string()).collect();
+    let mut h = format!(
+        "ENVI\nsamples = {cols}\nlines = {rows}\nbands = {}\nheader offset = 0\ndata type = 4\ninterleave = bsq\nbyte order = 0\nwavelength units = Micrometers\nwavelength = {{{}}}\n",
+        bands.len(),
+        wl.join(", ")
+    );
+    if let Some((a, b)) = fov {
+        h.push_str(&format!("eoir fov deg = {{{a}, {b}}}\n"));
+    }
+    std::fs::write(&hdr, h).unwrap();
+    let mut bytes = Vec::new();
+    for _ in 0..bands.len() * rows * cols {
+        bytes.extend_from_slice(&value.to_le_bytes());
+    }
+    std::fs::write(&img, bytes).unwrap();
+    hdr
+}
+
+fn mwir_grid() -> Vec<f64> {
+    (0..40).map(|i| 4.4 + 0.025 * i as f64).collect()
+}
+
+/// The multimir sensor's field of view, degrees (paraxial: pixels × IFOV).
+const MULTIMIR_FOV: (f64, f64) = (
+    384.0 * 0.24e-3 * 57.29577951308232,
+    288.0 * 0.24e-3 * 57.29577951308232,
+);
+
+#[test]
+fn run_writes_every_product_and_the_report() {
+    let dir = tempdir();
+    let input = write_envi(
+        dir.path(),
+        "flat",
+        &mwir_grid(),
+        288,
+        384,
+        3.0,
+        Some(MULTIMIR_FOV),
+    );
+    let out = dir.path().join("out");
+    let res = eoir()
+        .args(["run", "--sensor", "multimir", "--quiet"])
+        .arg(&input)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    for f in [
+        "dn.tiff",
+        "dn.png",
+        "electrons_mean.tiff",
+        "electrons_mean.exr",
+        "config.toml",
+        "report.json",
+    ] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    if cfg!(feature = "hdf5") {
+        assert!(out.join("products.h5").exists(), "products.h5 missing");
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["sampling"]["ratio_x"].as_f64().unwrap().round(), 1.0);
+    assert!(report["detector"]["gain_dn_per_e"].as_f64().unwrap() > 0.0);
+    assert!(report["timings_s"]["total"].as_f64().unwrap() > 0.0);
+    // A flat scene gives a flat image; the resolved config loads back as a sensor file.
+    let e = eoir::io::raster::read_tiff_f32(&out.join("electrons_mean.tiff")).unwrap();
+    let (lo, hi) = e
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(a, b), v| (a.min(*v), b.max(*v)));
+    assert!((hi - lo) / hi < 1e-5, "{lo} {hi}");
+    eoir::sensor::SensorConfig::load(&out.join("config.toml"), &[]).unwrap();
+    // No temporary files left behind.
+    assert!(std::fs::read_dir(&out).unwrap().all(|e| !e
+        .unwrap()
+        .file_name()
+        .to_string_lossy()
+        .contains("eoir-tmp")));
+}
+
+/// Bad inputs: one clear error line naming the problem, and nothing written.
+#[test]
+fn bad_inputs_give_one_error_and_write_nothing() {
+    let dir = tempdir();
+    let cases: Vec<(std::path::PathBuf, &str)> = {
+        let truncated = write_envi(
+            dir.path(),
+            "trunc",
+            &mwir_grid(),
+            288,
+            384,
+            3.0,
+            Some(MULTIMIR_FOV),
+        );
+        let img = dir.path().join("trunc.img");
+        let len = std::fs::metadata(&img).unwrap().len();
+        std::fs::OpenOptions::new()
+            .write(true)
+            .open(&img)
+            .unwrap()
+            .set_len(len - 100)
+            .unwrap();
+        let short = write_envi(
+            dir.path(),
+            "short",
+            &(0..20).map(|i| 4.0 + 0.025 * i as f64).collect::<Vec<_>>(),
+            288,
+            384,
+            3.0,
+            Some(MULTIMIR_FOV),
+        );
+        let nan = write_envi(
+            dir.path(),
+            "nan",
+            &mwir_grid(),
+            288,
+            384,
+            f32::NAN,
+            Some(MULTIMIR_FOV),
+        );
+        let neg = write_envi(
+            dir.path(),
+            "neg",
+            &mwir_grid(),
+            288,
+            384,
+            -1.0,
+            Some(MULTIMIR_FOV),
+        );
+        let nofov = write_envi(dir.path(), "nofov", &mwir_grid(), 288, 384, 3.0, None);
+        let small = write_envi(
+            dir.path(),
+            "small",
+            &mwir_grid(),
+            200,
+            300,
+            3.0,
+            Some((MULTIMIR_FOV.0 * 0.5, MULTIMIR_FOV.1 * 0.5)),
+        );
+        vec![
+            (truncated, "trunc"),
+            (short, "uncovered"),
+            (nan, "NaN"),
+            (neg, "-1"),
+            (nofov, "field of view"),
+            (small, "inside the scene"),
+        ]
+    };
+    for (input, needle) in cases {
+        let out = dir.path().join(format!("out-{needle}"));
+        let res = eoir()
+            .args(["run", "--sensor", "multimir"])
+            .arg(&input)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert_eq!(res.status.code(), Some(1), "{}", input.display());
+        let err = String::from_utf8_lossy(&res.stderr);
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+        assert!(err.contains(needle), "`{err}` lacks `{needle}`");
+        assert!(!err.contains("panicked"));
+        assert!(!out.exists(), "output written for {}", input.display());
+    }
+}
+
+/// `eoir scene` writes each kind in each default format; `eoir run` reads it back.
+#[test]
+fn scene_then_run_in_every_format() {
+    let dir = tempdir();
+    for (kind, ext) in [
+        ("thermal", "npy"),
+        ("bars", "exr"),
+        ("edge", "hdr"),
+        ("blackbody", "npy"),
+        ("ramp", "exr"),
+    ] {
+        let file = dir.path().join(format!("{kind}.{ext}"));
+        let res = eoir()
+            .args([
+                "scene",
+                kind,
+                "--rows",
+                "36",
+                "--cols",
+                "48",
+                "--oversampling",
+                "2",
+                "--lo-um",
+                "4.4",
+                "--hi-um",
+                "5.4",
+                "--bands",
+                "21",
+                "--fov-deg",
+            ])
+            .arg((48.0 * 0.24e-3f64).to_degrees().to_string())
+            .arg("-o")
+            .arg(&file)
+            .output()
+            .unwrap();
+        assert!(
+            res.status.success(),
+            "{kind}: {}",
+            String::from_utf8_lossy(&res.stderr)
+        );
+        let out = dir.path().join(format!("out-{kind}"));
+        let res = eoir()
+            .args([
+                "run",
+                "--sensor",
+                "multimir",
+                "--quiet",
+                "--set",
+                "detector.rows=36",
+                "--set",
+                "detector.cols=48",
+            ])
+            .arg(&file)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(
+            res.status.success(),
+            "{kind}: {}",
+            String::from_utf8_lossy(&res.stderr)
+        );
+        assert!(out.join("dn.tiff").exists());
+    }
+    let res = eoir()
+        .args(["scene", "nosuch", "-o"])
+        .arg(dir.path().join("x.npy"))
+        .output()
+        .unwrap();
+    assert_eq!(res.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&res.stderr).contains("thermal"));
+}
