@@ -1085,21 +1085,9 @@ fn list(v: &[f64]) -> String {
 /// wavelengths in µm, fwhm and eoir's keys (see the module documentation for file names).
 pub fn write(path: &Path, cube: &Cube) -> Result<()> {
     let (header_path, data_path) = output_paths(path);
-    let (b, r, c) = cube.data.dim();
+    cube.check(&path.display().to_string())?;
     let meta = &cube.meta;
-    if (b, r, c) != (meta.bands(), meta.rows, meta.cols) {
-        return Err(Error::param(
-            "cube shape",
-            format!("[{b}, {r}, {c}]"),
-            format!(
-                "[{}, {}, {}] as the metadata says",
-                meta.bands(),
-                meta.rows,
-                meta.cols
-            ),
-        ));
-    }
-    meta.validate(&path.display().to_string())?;
+    let (b, r, c) = cube.data.dim();
 
     let mut h = String::from("ENVI\n");
     h.push_str("description = {eoir spectral radiance cube}\n");

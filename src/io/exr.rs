@@ -738,20 +738,8 @@ fn text(path: &Path, what: &str, s: &str) -> Result<Text> {
 pub fn write(path: &Path, cube: &Cube) -> Result<()> {
     let meta = &cube.meta;
     let source = path.display().to_string();
-    meta.validate(&source)?;
+    cube.check(&source)?;
     let (bands, rows, cols) = cube.data.dim();
-    if bands != meta.bands() || rows != meta.rows || cols != meta.cols {
-        return Err(Error::param(
-            "cube shape",
-            format!("[{bands}, {rows}, {cols}]"),
-            format!(
-                "[{}, {}, {}] as the metadata says",
-                meta.bands(),
-                meta.rows,
-                meta.cols
-            ),
-        ));
-    }
 
     let mut channels: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
     let mut names: Vec<String> = Vec::with_capacity(bands);

@@ -429,20 +429,7 @@ fn sync(path: &Path) -> Result<()> {
 pub fn write(path: &Path, cube: &Cube) -> Result<()> {
     let meta = &cube.meta;
     let source = path.display().to_string();
-    meta.validate(&source)?;
-    let (bands, rows, cols) = cube.data.dim();
-    if (bands, rows, cols) != (meta.bands(), meta.rows, meta.cols) {
-        return Err(Error::param(
-            "cube shape",
-            format!("[{bands}, {rows}, {cols}]"),
-            format!(
-                "[{}, {}, {}] as the metadata says",
-                meta.bands(),
-                meta.rows,
-                meta.cols
-            ),
-        ));
-    }
+    cube.check(&source)?;
     for (b, plane) in cube.data.axis_iter(Axis(0)).enumerate() {
         check_radiance_plane(&source, b, meta.wavelength_um[b], plane)?;
     }

@@ -625,21 +625,9 @@ fn npy_header_f32(shape: &[usize]) -> Vec<u8> {
 /// Writes a cube as `<f4` `[band, row, col]` `.npy` plus its `<stem>.json` sidecar,
 /// both atomically.
 pub fn write(path: &Path, cube: &Cube) -> Result<()> {
-    let (b, r, c) = cube.data.dim();
+    cube.check(&path.display().to_string())?;
     let meta = &cube.meta;
-    if (b, r, c) != (meta.bands(), meta.rows, meta.cols) {
-        return Err(Error::param(
-            "cube shape",
-            format!("[{b}, {r}, {c}]"),
-            format!(
-                "[{}, {}, {}] as the metadata says",
-                meta.bands(),
-                meta.rows,
-                meta.cols
-            ),
-        ));
-    }
-    meta.validate(&path.display().to_string())?;
+    let (b, r, c) = cube.data.dim();
     let side = sidecar_path(path);
     if side == path {
         return Err(Error::format(

@@ -173,7 +173,16 @@ pub struct Cube {
 impl Cube {
     /// Builds a cube, checking that the array shape matches the metadata.
     pub fn new(data: Array3<f32>, meta: CubeMeta) -> Result<Self> {
-        let (b, r, c) = data.dim();
+        let cube = Cube { data, meta };
+        cube.check("cube")?;
+        Ok(cube)
+    }
+
+    /// Checks that the array shape matches the metadata and that the metadata is valid,
+    /// naming `source` (e.g. the file about to be written) in errors.
+    pub fn check(&self, source: &str) -> Result<()> {
+        let (b, r, c) = self.data.dim();
+        let meta = &self.meta;
         if b != meta.bands() || r != meta.rows || c != meta.cols {
             return Err(Error::param(
                 "cube shape",
@@ -186,8 +195,7 @@ impl Cube {
                 ),
             ));
         }
-        meta.validate("cube")?;
-        Ok(Cube { data, meta })
+        meta.validate(source)
     }
 }
 
