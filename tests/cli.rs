@@ -350,3 +350,63 @@ fn scene_then_run_in_every_format() {
     assert_eq!(res.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&res.stderr).contains("thermal"));
 }
+
+/// A `[frame, band, row, col]` NPY sequence gives one set of products per frame, and the
+/// frames differ where the scene does.
+#[test]
+fn sequence_input_writes_numbered_frames() {
+    let dir = tempdir();
+    let (frames, bands, rows, cols) = (3usize, 21usize, 24usize, 32usize);
+    let data =
+        ndarray::Array4::<f32>::from_shape_fn((frames, bands, rows, cols), |(f, _, r, c)| {
+            if (c + 2 * f) % 8 < 4 && r > 4 {
+                4.0
+            } else {
+                3.0
+            }
+        });
+    let npy = dir.path().join("seq.npy");
+    ndarray_npy::write_npy(&npy, &data).unwrap();
+    let wl: Vec<f64> = (0..bands).map(|i| 4.4 + 0.05 * i as f64).collect();
+    let fov = (
+        (cols as f64 * 0.24e-3).to_degrees(),
+        (rows as f64 * 0.24e-3).to_degrees(),
+    );
+    std::fs::write(
+        dir.path().join("seq.json"),
+        serde_json::json!({"wavelength_um": wl, "fov_deg": [fov.0, fov.1], "frame_time_s": 0.04})
+            .to_string(),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let res = eoir()
+        .args([
+            "run",
+            "--sensor",
+            "multimir",
+            "--quiet",
+            "--set",
+            "detector.rows=24",
+            "--set",
+            "detector.cols=32",
+        ])
+        .arg(&npy)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let mut dn = Vec::new();
+    for f in 0..frames {
+        let p = out.join(format!("frame_{f:04}_dn.tiff"));
+        dn.push(eoir::io::raster::read_tiff_u16(&p).unwrap());
+    }
+    assert_ne!(dn[0], dn[1]);
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["input"]["frames"], 3);
+}
