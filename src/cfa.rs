@@ -325,7 +325,7 @@ fn check_composite(channels: &[ArrayView2<f64>; 3], percentile_clip: f64) -> Res
 
 /// Maps `v` linearly from [lo, hi] to 0–255 (clamped); NaN and a flat range give 0.
 fn to_u8(v: f64, lo: f64, hi: f64) -> u8 {
-    if !(hi > lo) || !v.is_finite() {
+    if !(hi - lo).is_finite() || hi <= lo || !v.is_finite() {
         return 0;
     }
     let t = ((v - lo) / (hi - lo)).clamp(0.0, 1.0);

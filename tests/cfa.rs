@@ -8,10 +8,8 @@ use eoir::cfa::{
 use ndarray::{Array2, Array3};
 
 type Demosaic = fn(ndarray::ArrayView2<f64>, CfaPattern) -> Array3<f64>;
-const ALGORITHMS: [(&str, Demosaic); 2] = [
-    ("bilinear", demosaic_bilinear),
-    ("malvar", demosaic_malvar),
-];
+const ALGORITHMS: [(&str, Demosaic); 2] =
+    [("bilinear", demosaic_bilinear), ("malvar", demosaic_malvar)];
 
 fn through_cfa(planes: &[Array2<f64>; 3], pattern: CfaPattern, f: Demosaic) -> Array3<f64> {
     let raw = mosaic([&planes[0], &planes[1], &planes[2]], pattern).unwrap();
@@ -147,9 +145,8 @@ fn colour_bars_keep_their_hue_order() {
     ];
     let (rows, width) = (24, 16);
     let cols = width * bars.len();
-    let planes: [Array2<f64>; 3] = [RED, GREEN, BLUE].map(|k| {
-        Array2::from_shape_fn((rows, cols), |(_, c)| 100.0 + 900.0 * bars[c / width][k])
-    });
+    let planes: [Array2<f64>; 3] = [RED, GREEN, BLUE]
+        .map(|k| Array2::from_shape_fn((rows, cols), |(_, c)| 100.0 + 900.0 * bars[c / width][k]));
     let bg = [0.0, 0.0, 0.0];
     for p in CfaPattern::ALL {
         for (name, f) in ALGORITHMS {
@@ -217,7 +214,8 @@ fn malvar_beats_bilinear_on_a_smooth_colour_image_with_edges() {
     let gains = [1.0, 0.8, 0.55];
     let planes: [Array2<f64>; 3] = [0, 1, 2].map(|k| {
         Array2::from_shape_fn((rows, cols), |(r, c)| {
-            let chroma = 0.05 * (2.0 * std::f64::consts::PI * (c as f64 + k as f64 * 20.0) / 80.0).sin()
+            let chroma = 0.05
+                * (2.0 * std::f64::consts::PI * (c as f64 + k as f64 * 20.0) / 80.0).sin()
                 + 0.03 * (r as f64 / rows as f64);
             1000.0 * (gains[k] * lum[[r, c]] + chroma)
         })
@@ -294,7 +292,11 @@ fn false_colour_stretches_between_percentiles() {
 #[test]
 fn composite_writes_as_png() {
     let g = grey_scene(32, 40);
-    let planes = [g.clone(), g.t().to_owned().slice_move(ndarray::s![..32, ..32]), g.clone()];
+    let planes = [
+        g.clone(),
+        g.t().to_owned().slice_move(ndarray::s![..32, ..32]),
+        g.clone(),
+    ];
     // Different shapes are rejected; same shapes write.
     assert!(false_colour([planes[0].view(), planes[1].view(), planes[2].view()], 1.0).is_err());
     let img = false_colour([g.view(), (&g * 0.3).view(), (&g * 3.0).view()], 1.0).unwrap();

@@ -11,8 +11,7 @@ fn opts(list: &[&str]) -> Vec<String> {
 }
 
 fn load(name: &str, options: &[&str]) -> SensorConfig {
-    presets::load(name, &opts(options), &[])
-        .unwrap_or_else(|e| panic!("{name} {options:?}: {e}"))
+    presets::load(name, &opts(options), &[]).unwrap_or_else(|e| panic!("{name} {options:?}: {e}"))
 }
 
 fn info(name: &str) -> PresetInfo {
@@ -97,10 +96,16 @@ fn multimir_fields_of_view_match_the_report() {
     // report rounds: 2 atan(384 * 24 µm / 30 mm) = 34.1°, so allow 1° on the wide field.
     let wide = load("multimir", &["optics=15mm"]);
     let (h, v) = wide.fov_deg();
-    assert!((h - 35.0).abs() < 1.0 && (v - 26.0).abs() < 0.5, "{h} x {v}");
+    assert!(
+        (h - 35.0).abs() < 1.0 && (v - 26.0).abs() < 0.5,
+        "{h} x {v}"
+    );
     let narrow = load("multimir", &["optics=100mm"]);
     let (h, v) = narrow.fov_deg();
-    assert!((h - 5.3).abs() < 0.05 && (v - 4.0).abs() < 0.05, "{h} x {v}");
+    assert!(
+        (h - 5.3).abs() < 0.05 && (v - 4.0).abs() < 0.05,
+        "{h} x {v}"
+    );
     // The default is the report's §4.1 example: filter 4 and the 100 mm optics.
     let d = load("multimir", &[]);
     assert_eq!(d.fov_deg(), narrow.fov_deg());
@@ -115,7 +120,10 @@ fn emerald_field_of_view_matches_the_report() {
     for band in ["1", "2", "3"] {
         let s = load("emerald", &[&format!("band={band}")]);
         let (h, v) = s.fov_deg();
-        assert!((h - 17.0).abs() < 0.6 && (v - 14.0).abs() < 0.1, "{h} x {v}");
+        assert!(
+            (h - 17.0).abs() < 0.6 && (v - 14.0).abs() < 0.1,
+            "{h} x {v}"
+        );
         assert_eq!((s.detector.cols, s.detector.rows), (640, 512));
     }
 }
@@ -128,7 +136,10 @@ fn qwip_field_of_view_follows_pitch_and_focal_length_and_the_file_says_so() {
     let expect_v = 2.0 * (240.0 * 38e-6 / 0.08f64).atan().to_degrees();
     let (h, v) = s.fov_deg();
     assert!((h - expect_h).abs() < 1e-9 && (v - expect_v).abs() < 1e-9);
-    assert!((h - 17.3).abs() < 0.05 && (v - 13.0).abs() < 0.05, "{h} x {v}");
+    assert!(
+        (h - 17.3).abs() < 0.05 && (v - 13.0).abs() < 0.05,
+        "{h} x {v}"
+    );
     // The report's 20° x 15° disagrees with its own numbers; the preset documents it.
     let text = presets::preset_text("qwip").unwrap();
     assert!(text.contains("20 x 15") && text.contains("17.3 x 13.0"));
@@ -265,7 +276,10 @@ fn overrides_apply_after_options() {
     let e = presets::load("emerald", &opts(&["band=1"]), &opts(&["optics.f_number=0"]))
         .unwrap_err()
         .to_string();
-    assert!(e.contains("optics.f_number") && e.contains("emerald"), "{e}");
+    assert!(
+        e.contains("optics.f_number") && e.contains("emerald"),
+        "{e}"
+    );
 }
 
 const WITH_OPTIONS: &str = r#"
@@ -345,7 +359,10 @@ fn sensor_files_may_declare_options_and_merge_rules_hold() {
         .unwrap_err()
         .to_string();
     assert!(
-        e.contains("band") && e.contains("speed") && e.contains("filter") && e.contains("clash.toml"),
+        e.contains("band")
+            && e.contains("speed")
+            && e.contains("filter")
+            && e.contains("clash.toml"),
         "{e}"
     );
 

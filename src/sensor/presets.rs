@@ -301,10 +301,7 @@ pub fn apply_options(
                 if decl.is_empty() {
                     format!("nothing: {source} declares no options")
                 } else {
-                    format!(
-                        "an option of {source}: {}",
-                        describe_options(&decl)
-                    )
+                    format!("an option of {source}: {}", describe_options(&decl))
                 },
             ));
         };
@@ -353,9 +350,8 @@ pub fn apply_options(
         leaf_paths(overlay, "", &mut paths);
         for p in paths {
             for (q, other) in &set_by {
-                let overlap = p == *q
-                    || p.starts_with(&format!("{q}."))
-                    || q.starts_with(&format!("{p}."));
+                let overlap =
+                    p == *q || p.starts_with(&format!("{q}.")) || q.starts_with(&format!("{p}."));
                 if overlap {
                     return Err(Error::format(
                         source,
