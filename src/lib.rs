@@ -15,6 +15,7 @@
 //! - [`optics`]: aperture, aberration, defocus, detector-footprint transfer functions.
 //! - [`motion`]: linear smear, jitter and global Gaussian transfer functions.
 //! - [`atmosphere`]: Fried parameter, turbulence and aerosol transfer functions.
+//! - [`cfa`]: colour filter arrays: mosaicking, demosaicking, false-colour composites.
 //! - [`sensor`]: the sensor configuration schema, validation and the system OTF cascade.
 //! - [`plot`]: PNG line plots with an embedded font (no system font libraries).
 //! - [`report`]: figures of merit (MTF curves, …) and their plots.
@@ -25,6 +26,7 @@
 #![warn(missing_docs)]
 
 pub mod atmosphere;
+pub mod cfa;
 pub mod constants;
 pub mod error;
 pub mod imaging;

@@ -97,7 +97,7 @@ fn parse_pair(text: &str, what: &str) -> Result<(f64, f64)> {
 }
 
 fn mtf(args: MtfArgs) -> Result<()> {
-    let sensor = presets::load(&args.sensor, &args.set)?;
+    let sensor = presets::load(&args.sensor, &[], &args.set)?;
     for w in sensor.warnings() {
         eprintln!("warning: {w}");
     }

@@ -182,7 +182,7 @@ fn run_file(
 
 /// `eoir run`.
 pub fn run(args: RunArgs) -> Result<()> {
-    let sensor = presets::load(&args.sensor, &args.set)?;
+    let sensor = presets::load(&args.sensor, &[], &args.set)?;
     let geometry = match &args.fov_deg {
         Some(t) => {
             let (h, v) = super::parse_pair(t, "--fov-deg")?;
@@ -207,7 +207,7 @@ pub fn run(args: RunArgs) -> Result<()> {
 /// `eoir demo`: the thermal scene, sized to cover the sensor at `oversampling` scene samples
 /// per detector pixel and its spectral band, through the sensor.
 pub fn demo(args: DemoArgs) -> Result<()> {
-    let sensor = presets::load(&args.sensor, &args.set)?;
+    let sensor = presets::load(&args.sensor, &[], &args.set)?;
     if args.oversampling == 0 {
         bail!("--oversampling must be at least 1");
     }

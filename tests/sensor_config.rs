@@ -136,11 +136,11 @@ fn resolved_config_round_trips_through_toml() {
 #[test]
 fn embedded_presets_load_and_validate() {
     for (name, _) in presets::PRESETS {
-        let s = presets::load(name, &[]).unwrap();
+        let s = presets::load(name, &[], &[]).unwrap();
         assert!(!s.description.is_empty());
         SystemOtf::new(&s).unwrap();
     }
-    let e = presets::load("no-such-sensor", &[])
+    let e = presets::load("no-such-sensor", &[], &[])
         .unwrap_err()
         .to_string();
     assert!(e.contains("multimir"), "{e}");
@@ -149,7 +149,7 @@ fn embedded_presets_load_and_validate() {
 #[test]
 fn multimir_geometry_matches_the_report() {
     // FOI report table 3.1: 100 mm optics, 5.3° x 4.0° field of view.
-    let s = presets::load("multimir", &[]).unwrap();
+    let s = presets::load("multimir", &[], &[]).unwrap();
     let (h, v) = s.fov_deg();
     assert!(
         (h - 5.3).abs() < 0.05 && (v - 4.0).abs() < 0.05,

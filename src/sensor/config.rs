@@ -27,6 +27,7 @@
 //! sigma_rad = 20e-6
 //! ```
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -383,6 +384,23 @@ pub struct AtmosphereConfig {
     pub transmission: SpectrumConfig,
 }
 
+/// `[cfa]`: a colour filter array (Bayer mosaic) over the detector. Each pixel sees the
+/// chain's response times the transmission of its own colour filter; see [`crate::cfa`]
+/// for mosaicking and demosaicking.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CfaConfig {
+    /// The 2 × 2 tile, read row by row from the top-left pixel: `"RGGB"`, `"BGGR"`,
+    /// `"GRBG"` or `"GBRG"`.
+    pub pattern: crate::cfa::CfaPattern,
+    /// Transmission of the red filter (dye, times any IR-cut filter not in `[filter]`).
+    pub red: SpectrumConfig,
+    /// Transmission of the green filter.
+    pub green: SpectrumConfig,
+    /// Transmission of the blue filter.
+    pub blue: SpectrumConfig,
+}
+
 /// A complete sensor description, as read from a TOML file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -429,6 +447,13 @@ pub struct SensorConfig {
     /// Measured MTF.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub measured: Option<MeasuredConfig>,
+    /// Colour filter array (a Bayer sensor); absent for a monochrome sensor.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cfa: Option<CfaConfig>,
+    /// The preset options this description was resolved with (`--option name=value`, or
+    /// the preset's defaults), recorded for provenance; informational only.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub selected_options: BTreeMap<String, String>,
     /// Directory that relative paths in this description are resolved against.
     #[serde(skip)]
     pub base_dir: PathBuf,
@@ -477,6 +502,41 @@ impl SensorConfig {
                     )
                 })?;
         }
+        Self::finish(config, source, base_dir)
+    }
+
+    /// Builds a sensor description from an already parsed TOML table (e.g. a preset with
+    /// its options merged in, see [`crate::sensor::presets`]), applies `overrides` and
+    /// validates the result. `source` names it in errors; `base_dir` resolves relative
+    /// paths.
+    pub fn from_table(
+        mut table: toml::Table,
+        source: &str,
+        base_dir: PathBuf,
+        overrides: &[String],
+    ) -> Result<Self> {
+        for o in overrides {
+            apply_override(&mut table, o)?;
+        }
+        let config: SensorConfig =
+            toml::Value::Table(table)
+                .try_into()
+                .map_err(|e: toml::de::Error| {
+                    let msg = e.message().trim().replace('\n', " ");
+                    if overrides.is_empty() {
+                        Error::format(source, msg)
+                    } else {
+                        Error::format(
+                            source,
+                            format!("after --set {}: {msg}", overrides.join(" --set ")),
+                        )
+                    }
+                })?;
+        Self::finish(config, source, base_dir)
+    }
+
+    /// Sets the base directory and validates, naming `source` in errors.
+    fn finish(mut config: SensorConfig, source: &str, base_dir: PathBuf) -> Result<Self> {
         config.base_dir = base_dir;
         config.validate().map_err(|e| match e {
             Error::InvalidParameter { .. } => Error::format(source, e.to_string()),
@@ -672,6 +732,11 @@ impl SensorConfig {
         }
         // Spectra are checked by building them (this also reads CSV files).
         self.spectral_response()?;
+        if let Some(c) = &self.cfa {
+            c.red.build(&self.base_dir, "cfa.red")?;
+            c.green.build(&self.base_dir, "cfa.green")?;
+            c.blue.build(&self.base_dir, "cfa.blue")?;
+        }
         Ok(())
     }
 
