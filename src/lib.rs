@@ -26,6 +26,7 @@
 
 pub mod atmosphere;
 pub mod constants;
+pub mod detector;
 pub mod error;
 pub mod imaging;
 pub mod io;
