@@ -819,3 +819,38 @@ fn megapixel_frame_with_large_means_is_fast() {
     assert_eq!(dn.dim(), (n, n));
     assert!(dt < 3.0, "{dt} s");
 }
+
+/// The resolved configuration written next to every output reads back identically with
+/// every detector sub-table present.
+#[test]
+fn detector_tables_round_trip_through_toml() {
+    let s = sensor(
+        16,
+        16,
+        &[
+            "detector.read_noise_e=150",
+            "detector.shot_noise=true",
+            "detector.dark_model.kind=\"generation_recombination\"",
+            "detector.dark_model.fpa_temperature_k=300",
+            "detector.dark_model.reference_temperature_k=293",
+            "detector.dark_model.reference_e_per_s=50",
+            "detector.dark_model.bandgap_ev=1.12",
+            "detector.background.temperature_k=293",
+            "detector.background.emissivity=0.05",
+            "detector.fpn.prnu_sigma_rel=0.01",
+            "detector.fpn.column_sigma_e=3",
+            "detector.nonlinearity.quadratic_mean_per_e=-1e-9",
+            "detector.defects.hot_fraction=0.001",
+            "detector.auto_gain.reference=\"blackbody\"",
+        ],
+    )
+    .unwrap();
+    let text = s.to_toml_string().unwrap();
+    let back = SensorConfig::from_toml_str(&text, "round", PathBuf::from("."), &[]).unwrap();
+    assert_eq!(back.detector, s.detector, "{text}");
+    let m = DetectorModel::from_config(&back).unwrap();
+    // Silicon G-R dark current 7 K above the reference: the rule of thumb "doubles every
+    // ~8–9 K near room temperature" gives 1.7–1.8.
+    let ratio = m.dark_e() / s.detector.integration_time_s / 50.0;
+    assert!(ratio > 1.6 && ratio < 1.9, "{ratio}");
+}
