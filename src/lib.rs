@@ -28,6 +28,7 @@
 pub mod atmosphere;
 pub mod cfa;
 pub mod constants;
+pub mod detector;
 pub mod error;
 pub mod imaging;
 pub mod io;

@@ -204,6 +204,35 @@ pub struct DetectorConfig {
     /// Black level (offset) added after conversion, DN.
     #[serde(default)]
     pub offset_dn: f64,
+    /// Constant dark current, electrons per second per pixel (absent or 0 = off).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dark_current_e_per_s: Option<f64>,
+    /// Temperature-dependent dark current instead of the constant (see
+    /// [`crate::detector::config::DarkModelConfig`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dark_model: Option<crate::detector::config::DarkModelConfig>,
+    /// Gaussian read noise, electrons rms (absent or 0 = off).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub read_noise_e: Option<f64>,
+    /// Poisson shot noise on signal + dark + background (absent = on).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shot_noise: Option<bool>,
+    /// Optics self-emission background (see [`crate::detector::config::BackgroundConfig`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub background: Option<crate::detector::config::BackgroundConfig>,
+    /// Fixed-pattern noise (see [`crate::detector::config::FpnConfig`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fpn: Option<crate::detector::config::FpnConfig>,
+    /// Per-pixel quadratic nonlinearity (see [`crate::detector::config::NonlinearityConfig`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nonlinearity: Option<crate::detector::config::NonlinearityConfig>,
+    /// Dead, hot and stuck pixels (see [`crate::detector::config::DefectsConfig`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub defects: Option<crate::detector::config::DefectsConfig>,
+    /// Conversion gain chosen from a reference scene (see
+    /// [`crate::detector::config::AutoGainConfig`]); excludes `gain_dn_per_e`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub auto_gain: Option<crate::detector::config::AutoGainConfig>,
 }
 
 fn default_full_well() -> f64 {
@@ -603,6 +632,7 @@ impl SensorConfig {
             require_positive("detector.gain_dn_per_e", k)?;
         }
         require_in_range("detector.offset_dn", d.offset_dn, 0.0, d.max_dn())?;
+        crate::detector::config::validate_effects(d)?;
         if let Some(a) = &self.aberration {
             require_non_negative("aberration.rms_waves", a.rms_waves)?;
         }
