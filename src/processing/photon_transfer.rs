@@ -24,6 +24,9 @@
 //! - **Saturation**: the level of maximum temporal variance (the saturation point is the
 //!   maximum of the photon transfer curve); saturation capacity
 //!   `μ_e.sat = (μ_y.sat − μ_y.dark) / K` electrons (= η μ_p.sat for a linear sensor).
+//!   If the brightest level is still below saturation, the variance keeps rising and the
+//!   brightest level is reported: the saturation capacity is then only a lower bound.
+//!   `fit_fraction = 1` fits all the way up to the variance maximum.
 //! - **Spatial non-uniformity**: from a stack of L frames averaged per pixel, the
 //!   spatial variance over pixels minus the temporal variance that survives the averaging,
 //!   `s_y² = var_pixels(⟨y⟩_L) − σ_y²/L`, at dark and at a bright level
