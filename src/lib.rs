@@ -36,6 +36,7 @@ pub mod motion;
 pub mod optics;
 pub mod pipeline;
 pub mod plot;
+pub mod processing;
 pub mod radiometry;
 pub mod report;
 pub mod scene;

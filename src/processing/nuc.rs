@@ -1,0 +1,477 @@
+//! Non-uniformity correction (NUC): a per-pixel polynomial that maps each pixel's own
+//! signal onto a common reference.
+//!
+//! Calibration views L uniform sources (flat fields, blackbodies) and averages M frames
+//! at each, giving per pixel the signal `x_l(i,j)` and for the level a reference value
+//! `r_l` (the source radiance, or simply the array mean at that level). Each pixel gets
+//! the least-squares polynomial of degree N
+//!
+//! `r ≈ Σ_k a_k(i,j) · zᵏ`,  `z = (x − c)/s`,
+//!
+//! the classical two-point correction for N = 1 and two levels (gain and offset per
+//! pixel; FOI report §2.2.2.1, the "two point correction scheme"), and a multi-point
+//! polynomial NUC for N ≥ 2 that also absorbs per-pixel nonlinearity. The pixel signal is
+//! centred and scaled by array-wide constants (`c` = mean signal over all levels, `s` =
+//! largest distance of a level's mean signal from `c`), so z spans about [−1, 1] for every
+//! pixel and the small least-squares problems stay well conditioned; each is solved by a
+//! QR factorisation (modified Gram–Schmidt with re-orthogonalisation) of its L × (N+1)
+//! Vandermonde matrix, pixels in parallel. A pixel whose signal does not vary enough to
+//! determine all N+1 coefficients (a dead pixel) gets the highest degree it supports
+//! (down to a constant, the mean reference) and is listed in
+//! [`NucCoefficients::rank_deficient`]; a pixel with a non-finite signal gets NaN
+//! coefficients and is listed too.
+//!
+//! ## Coefficient files
+//!
+//! [`NucCoefficients::save`] writes `<stem>.npy`, a little-endian `f64` NPY array of shape
+//! `[N+1, rows, cols]` whose plane k holds `a_k` (the coefficient of zᵏ), and the sidecar
+//! `<stem>.json`:
+//!
+//! ```json
+//! {
+//!   "format": "eoir-nuc",
+//!   "version": 1,
+//!   "degree": 1,
+//!   "signal_centre": 2051.37,
+//!   "signal_scale": 1024.5,
+//!   "rows": 480,
+//!   "cols": 640,
+//!   "rank_deficient": [[12, 40]]
+//! }
+//! ```
+//!
+//! `z = (x − signal_centre) / signal_scale`; `rank_deficient` lists `[row, col]` of the
+//! pixels described above. Unknown keys are errors. Both files are written atomically.
+
+use std::fs::File;
+use std::io::BufReader;
+use std::path::{Path, PathBuf};
+
+use ndarray::{Array2, Array3, ArrayView2, Zip};
+use ndarray_npy::{ReadNpyExt, WriteNpyExt};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::bad_pixels::BadPixelMap;
+use super::{check_frame, check_shape, mean_variance};
+use crate::error::{Error, Result};
+use crate::io::{atomic_write, write_all};
+
+/// A Vandermonde column zᵏ whose part orthogonal to the lower powers is shorter than this
+/// fraction of max(‖zᵏ‖, √L) (z spans about [−1, 1]) is taken as linearly dependent.
+const RANK_TOL: f64 = 1e-9;
+
+/// Highest polynomial degree accepted (monomials beyond this are ill-conditioned even on
+/// the scaled signal).
+pub const MAX_DEGREE: usize = 8;
+
+/// Per-pixel polynomial NUC coefficients (see the module documentation).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NucCoefficients {
+    degree: usize,
+    signal_centre: f64,
+    signal_scale: f64,
+    /// `[degree + 1, rows, cols]`, plane k = coefficient of zᵏ.
+    coefficients: Array3<f64>,
+    rank_deficient: Vec<(usize, usize)>,
+}
+
+/// The `.json` sidecar of a coefficient file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NucSidecar {
+    format: String,
+    version: u32,
+    degree: usize,
+    signal_centre: f64,
+    signal_scale: f64,
+    rows: usize,
+    cols: usize,
+    #[serde(default)]
+    rank_deficient: Vec<[usize; 2]>,
+}
+
+const FORMAT_NAME: &str = "eoir-nuc";
+const FORMAT_VERSION: u32 = 1;
+
+/// Rounds to 9 significant digits, so the value is written and re-read exactly by any
+/// JSON parser (the shortest decimal form then has at most 9 digits).
+fn round_sig(x: f64) -> f64 {
+    format!("{x:.8e}").parse().unwrap_or(x)
+}
+
+impl NucCoefficients {
+    /// Fits the per-pixel polynomial of degree `degree` mapping each pixel's signal onto
+    /// the reference. `levels` holds, per calibration level, the reference value and the
+    /// per-pixel average of the frames recorded at that level (see
+    /// [`mean_frame`](super::mean_frame)).
+    ///
+    /// Errors: `degree` above [`MAX_DEGREE`]; fewer than `degree + 1` levels; empty or
+    /// differently shaped frames; a non-finite reference; levels whose mean signals are
+    /// all equal (nothing to fit).
+    pub fn fit(levels: &[(f64, ArrayView2<f64>)], degree: usize) -> Result<Self> {
+        if degree > MAX_DEGREE {
+            return Err(Error::param(
+                "degree",
+                degree,
+                format!("a polynomial degree from 0 to {MAX_DEGREE}"),
+            ));
+        }
+        if levels.len() < degree + 1 {
+            return Err(Error::param(
+                "levels",
+                format!("{} calibration levels", levels.len()),
+                format!(
+                    "at least degree + 1 = {} levels for a degree-{degree} NUC",
+                    degree + 1
+                ),
+            ));
+        }
+        let shape = levels[0].1.dim();
+        check_frame("levels[0]", levels[0].1)?;
+        let mut level_means = Vec::with_capacity(levels.len());
+        for (l, (reference, frame)) in levels.iter().enumerate() {
+            check_shape(&format!("levels[{l}]"), frame.dim(), shape)?;
+            if !reference.is_finite() {
+                return Err(Error::param(
+                    format!("levels[{l}] reference"),
+                    reference,
+                    "a finite reference signal",
+                ));
+            }
+            let (sum, n) = frame
+                .iter()
+                .filter(|v| v.is_finite())
+                .fold((0.0, 0usize), |(s, n), &v| (s + v, n + 1));
+            if n == 0 {
+                return Err(Error::param(
+                    format!("levels[{l}]"),
+                    "no finite pixel",
+                    "a frame with finite pixel values",
+                ));
+            }
+            level_means.push(sum / n as f64);
+        }
+        let centre = level_means.iter().sum::<f64>() / level_means.len() as f64;
+        let spread = level_means
+            .iter()
+            .map(|m| (m - centre).abs())
+            .fold(0.0, f64::max);
+        if degree > 0 && (spread.is_nan() || spread <= 0.0) {
+            return Err(Error::param(
+                "levels",
+                "all levels have the same mean signal",
+                "calibration levels at different signal levels",
+            ));
+        }
+        let signal_centre = round_sig(centre);
+        let signal_scale = if spread > 0.0 { round_sig(spread) } else { 1.0 };
+        let (rows, cols) = shape;
+        let npix = rows * cols;
+        let references: Vec<f64> = levels.iter().map(|l| l.0).collect();
+        let frames: Vec<ArrayView2<f64>> = levels.iter().map(|l| l.1).collect();
+
+        let fits: Vec<(Vec<f64>, bool)> = (0..npix)
+            .into_par_iter()
+            .map_init(
+                || Vec::with_capacity(frames.len()),
+                |z, p| {
+                    let (i, j) = (p / cols, p % cols);
+                    z.clear();
+                    z.extend(
+                        frames
+                            .iter()
+                            .map(|f| (f[[i, j]] - signal_centre) / signal_scale),
+                    );
+                    fit_polynomial(z, &references, degree)
+                },
+            )
+            .collect();
+
+        let mut coefficients = Array3::zeros((degree + 1, rows, cols));
+        let mut rank_deficient = Vec::new();
+        for (p, (a, full)) in fits.into_iter().enumerate() {
+            let (i, j) = (p / cols, p % cols);
+            for (k, v) in a.into_iter().enumerate() {
+                coefficients[[k, i, j]] = v;
+            }
+            if !full {
+                rank_deficient.push((i, j));
+            }
+        }
+        Ok(NucCoefficients {
+            degree,
+            signal_centre,
+            signal_scale,
+            coefficients,
+            rank_deficient,
+        })
+    }
+
+    /// The polynomial degree N.
+    pub fn degree(&self) -> usize {
+        self.degree
+    }
+
+    /// The frame shape `(rows, cols)`.
+    pub fn dim(&self) -> (usize, usize) {
+        let (_, r, c) = self.coefficients.dim();
+        (r, c)
+    }
+
+    /// The centre c and scale s of the normalised signal `z = (x − c)/s`.
+    pub fn signal_normalisation(&self) -> (f64, f64) {
+        (self.signal_centre, self.signal_scale)
+    }
+
+    /// The coefficients `[N+1, rows, cols]`, plane k multiplying zᵏ.
+    pub fn coefficients(&self) -> &Array3<f64> {
+        &self.coefficients
+    }
+
+    /// Pixels whose signal did not determine all N+1 coefficients, or was not finite.
+    pub fn rank_deficient(&self) -> &[(usize, usize)] {
+        &self.rank_deficient
+    }
+
+    /// The rank-deficient pixels as a [`BadPixelMap`].
+    pub fn rank_deficient_map(&self) -> BadPixelMap {
+        let (r, c) = self.dim();
+        let mut mask = Array2::from_elem((r, c), false);
+        for &(i, j) in &self.rank_deficient {
+            mask[[i, j]] = true;
+        }
+        BadPixelMap::from_mask(mask)
+    }
+
+    /// Corrects a frame: each pixel's polynomial evaluated (Horner) at its signal.
+    ///
+    /// Errors: a frame of another shape.
+    pub fn apply(&self, frame: ArrayView2<f64>) -> Result<Array2<f64>> {
+        check_shape("frame", frame.dim(), self.dim())?;
+        let (c, s) = (self.signal_centre, self.signal_scale);
+        let n = self.degree;
+        let coeffs = &self.coefficients;
+        let mut out = Array2::zeros(frame.dim());
+        Zip::indexed(&mut out)
+            .and(&frame)
+            .par_for_each(|(i, j), o, &x| {
+                let z = (x - c) / s;
+                let mut acc = coeffs[[n, i, j]];
+                for k in (0..n).rev() {
+                    acc = acc * z + coeffs[[k, i, j]];
+                }
+                *o = acc;
+            });
+        Ok(out)
+    }
+
+    /// Writes `<stem>.npy` and `<stem>.json` (format in the module documentation), each
+    /// atomically; if the sidecar cannot be written the new array file is removed.
+    ///
+    /// Errors: a path not ending in `.npy`, or an I/O failure (naming the file).
+    pub fn save(&self, path: &Path) -> Result<()> {
+        let side = sidecar_path(path)?;
+        let (rows, cols) = self.dim();
+        let sc = NucSidecar {
+            format: FORMAT_NAME.to_string(),
+            version: FORMAT_VERSION,
+            degree: self.degree,
+            signal_centre: self.signal_centre,
+            signal_scale: self.signal_scale,
+            rows,
+            cols,
+            rank_deficient: self.rank_deficient.iter().map(|&(i, j)| [i, j]).collect(),
+        };
+        let mut json = serde_json::to_string_pretty(&sc)
+            .map_err(|e| Error::format(&side, format!("cannot encode the NUC sidecar: {e}")))?;
+        json.push('\n');
+        atomic_write(path, |w| {
+            self.coefficients
+                .write_npy(&mut *w)
+                .map_err(|e| Error::format(path, format!("cannot write the NPY array: {e}")))
+        })?;
+        let res = atomic_write(&side, |w| write_all(w, json.as_bytes(), &side));
+        if res.is_err() {
+            let _ = std::fs::remove_file(path);
+        }
+        res
+    }
+
+    /// Reads coefficients written by [`save`](Self::save), checking the sidecar (format,
+    /// version, degree, normalisation) against the array shape `[degree+1, rows, cols]`.
+    ///
+    /// Errors: missing or unreadable files, an unknown format or version, unknown keys,
+    /// inconsistent shapes, a non-positive scale, or rank-deficient positions outside the
+    /// frame.
+    pub fn load(path: &Path) -> Result<Self> {
+        let side = sidecar_path(path)?;
+        let text = std::fs::read_to_string(&side).map_err(|e| Error::io(&side, e))?;
+        let sc: NucSidecar = serde_json::from_str(&text)
+            .map_err(|e| Error::format(&side, format!("invalid NUC sidecar: {e}")))?;
+        if sc.format != FORMAT_NAME || sc.version != FORMAT_VERSION {
+            return Err(Error::format(
+                &side,
+                format!(
+                    "format `{}` version {} is not supported; expected `{FORMAT_NAME}` version {FORMAT_VERSION}",
+                    sc.format, sc.version
+                ),
+            ));
+        }
+        if sc.degree > MAX_DEGREE {
+            return Err(Error::format(
+                &side,
+                format!("degree {} is above the maximum {MAX_DEGREE}", sc.degree),
+            ));
+        }
+        if !(sc.signal_centre.is_finite() && sc.signal_scale.is_finite() && sc.signal_scale > 0.0) {
+            return Err(Error::format(
+                &side,
+                format!(
+                    "signal_centre = {} must be finite and signal_scale = {} finite and > 0",
+                    sc.signal_centre, sc.signal_scale
+                ),
+            ));
+        }
+        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+        let coefficients = Array3::<f64>::read_npy(BufReader::new(file)).map_err(|e| {
+            Error::format(
+                path,
+                format!("cannot read a 3-D little-endian f64 NPY array: {e}"),
+            )
+        })?;
+        let expected = (sc.degree + 1, sc.rows, sc.cols);
+        if coefficients.dim() != expected || sc.rows == 0 || sc.cols == 0 {
+            let (a, b, c) = coefficients.dim();
+            return Err(Error::format(
+                path,
+                format!(
+                    "array shape [{a}, {b}, {c}] does not match the sidecar: expected [degree + 1, rows, cols] = [{}, {}, {}] with rows, cols > 0",
+                    expected.0, expected.1, expected.2
+                ),
+            ));
+        }
+        let mut rank_deficient = Vec::with_capacity(sc.rank_deficient.len());
+        for [i, j] in sc.rank_deficient {
+            if i >= sc.rows || j >= sc.cols {
+                return Err(Error::format(
+                    &side,
+                    format!(
+                        "rank_deficient pixel [{i}, {j}] lies outside the {}×{} frame",
+                        sc.rows, sc.cols
+                    ),
+                ));
+            }
+            rank_deficient.push((i, j));
+        }
+        Ok(NucCoefficients {
+            degree: sc.degree,
+            signal_centre: sc.signal_centre,
+            signal_scale: sc.signal_scale,
+            coefficients,
+            rank_deficient,
+        })
+    }
+}
+
+/// The sidecar path `<stem>.json` of a coefficient file `<stem>.npy`.
+fn sidecar_path(path: &Path) -> Result<PathBuf> {
+    let is_npy = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
+    if !is_npy {
+        return Err(Error::format(
+            path,
+            "a NUC coefficient file name must end in .npy (its sidecar is <stem>.json)",
+        ));
+    }
+    Ok(path.with_extension("json"))
+}
+
+/// Least-squares polynomial `y ≈ Σ_k a_k zᵏ`, k ≤ `degree`, by QR (modified Gram–Schmidt,
+/// two passes) of the Vandermonde matrix. Columns that are (numerically) dependent on the
+/// lower powers end the basis: the returned coefficients of higher powers are 0 and the
+/// flag is false. Non-finite input gives NaN coefficients and false.
+fn fit_polynomial(z: &[f64], y: &[f64], degree: usize) -> (Vec<f64>, bool) {
+    let l = z.len();
+    if z.iter().chain(y).any(|v| !v.is_finite()) {
+        return (vec![f64::NAN; degree + 1], false);
+    }
+    let mut q: Vec<Vec<f64>> = Vec::with_capacity(degree + 1);
+    // r[k][j] for j ≤ k: column k of R.
+    let mut r: Vec<Vec<f64>> = Vec::with_capacity(degree + 1);
+    let mut full = true;
+    for k in 0..=degree {
+        let mut v: Vec<f64> = z.iter().map(|&x| x.powi(k as i32)).collect();
+        let scale = (v.iter().map(|x| x * x).sum::<f64>().sqrt()).max((l as f64).sqrt());
+        let mut rk = vec![0.0; k + 1];
+        for _pass in 0..2 {
+            for (j, qj) in q.iter().enumerate() {
+                let d: f64 = qj.iter().zip(&v).map(|(a, b)| a * b).sum();
+                rk[j] += d;
+                for (vi, qi) in v.iter_mut().zip(qj) {
+                    *vi -= d * qi;
+                }
+            }
+        }
+        let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if norm.is_nan() || norm <= RANK_TOL * scale {
+            full = false;
+            break;
+        }
+        rk[k] = norm;
+        for vi in v.iter_mut() {
+            *vi /= norm;
+        }
+        q.push(v);
+        r.push(rk);
+    }
+    // Solve R a = Qᵀ y by back substitution.
+    let m = q.len();
+    let qty: Vec<f64> = q
+        .iter()
+        .map(|qk| qk.iter().zip(y).map(|(a, b)| a * b).sum())
+        .collect();
+    let mut a = vec![0.0; degree + 1];
+    for k in (0..m).rev() {
+        let mut s = qty[k];
+        for j in k + 1..m {
+            s -= r[j][k] * a[j];
+        }
+        a[k] = s / r[k][k];
+    }
+    (a, full)
+}
+
+/// Residual non-uniformity of a (corrected) flat-field frame: spatial standard deviation
+/// over mean, `σ_s / μ` (n − 1 normalisation), over the finite pixels not flagged in
+/// `exclude`. For a frame averaged over many images this is the fixed-pattern residual;
+/// for a single frame it includes the temporal noise.
+///
+/// Errors: a map of another shape, fewer than two valid pixels, or a zero mean.
+pub fn residual_nonuniformity(
+    frame: ArrayView2<f64>,
+    exclude: Option<&BadPixelMap>,
+) -> Result<f64> {
+    check_frame("frame", frame)?;
+    if let Some(map) = exclude {
+        check_shape("bad-pixel map", map.dim(), frame.dim())?;
+    }
+    let valid = frame
+        .indexed_iter()
+        .filter(|((i, j), v)| v.is_finite() && !exclude.is_some_and(|m| m.is_bad(*i, *j)))
+        .map(|(_, &v)| v);
+    let (mean, var) = mean_variance(valid).ok_or_else(|| {
+        Error::param(
+            "frame",
+            "fewer than 2 valid pixels",
+            "at least two finite, unflagged pixels",
+        )
+    })?;
+    if mean == 0.0 {
+        return Err(Error::OutOfRange(
+            "residual non-uniformity: the frame mean is 0, so σ/mean is undefined".to_string(),
+        ));
+    }
+    Ok(var.sqrt() / mean.abs())
+}
