@@ -142,27 +142,54 @@ impl Spectrum {
         })
     }
 
-    /// Quantum efficiency of an ideal photon detector with cut-off wavelength `cutoff_um`:
-    /// `η(λ) = eta_peak · λ/λc` for 0 < λ ≤ λc and 0 above (each photon above the band-gap
-    /// energy yields one electron, so the QE per unit *power* rises linearly with λ; written
-    /// here per photon normalised to the peak at λc).
+    /// Relative spectral responsivity *per unit power* of an ideal photon detector with
+    /// cut-off wavelength `cutoff_um`: `eta_peak · λ/λc` for 0 < λ ≤ λc and 0 above (every
+    /// photon above the band-gap energy yields one electron, so the signal per watt rises
+    /// linearly with λ — the "relative response" R_rel(λ) of the FOI report).
+    ///
+    /// This is **not** a quantum efficiency: eoir's spectral chain already converts power
+    /// to photons with λ/(hc), so using this curve as electrons per photon would count λ
+    /// twice. The quantum efficiency of the same ideal detector is flat:
+    /// [`Spectrum::ideal_quantum_efficiency`].
     ///
     /// Errors: `eta_peak` outside (0, 1], `cutoff_um` not finite and > 0.
     pub fn photon_detector(eta_peak: f64, cutoff_um: f64) -> Result<Spectrum> {
-        if !(eta_peak > 0.0 && eta_peak <= 1.0) {
-            return Err(Error::param(
-                "eta_peak",
-                eta_peak,
-                "a quantum efficiency in (0, 1]",
-            ));
-        }
-        crate::error::require_positive("cutoff_um", cutoff_um)?;
+        Self::check_photon_detector(eta_peak, cutoff_um)?;
         Ok(Spectrum {
             kind: Kind::PhotonDetector {
                 scale: eta_peak,
                 cutoff_um,
             },
         })
+    }
+
+    /// Quantum efficiency (electrons per photon) of an ideal photon detector: `eta` at every
+    /// wavelength up to the cut-off `cutoff_um`, 0 above.
+    ///
+    /// Errors: `eta` outside (0, 1], `cutoff_um` not finite and > 0.
+    pub fn ideal_quantum_efficiency(eta: f64, cutoff_um: f64) -> Result<Spectrum> {
+        Self::check_photon_detector(eta, cutoff_um)?;
+        // A sharp top-hat from just above 0 µm; its lower 50 % point is far below any
+        // optical band.
+        Spectrum::top_hat(1e-6_f64.min(cutoff_um / 2.0), cutoff_um, 0.0, eta)
+    }
+
+    fn check_photon_detector(eta_peak: f64, cutoff_um: f64) -> Result<()> {
+        if !(eta_peak.is_finite() && eta_peak > 0.0 && eta_peak <= 1.0) {
+            return Err(Error::param(
+                "eta_peak",
+                eta_peak,
+                "a quantum efficiency in (0, 1]",
+            ));
+        }
+        if !(cutoff_um.is_finite() && cutoff_um > 0.0) {
+            return Err(Error::param(
+                "cutoff_um",
+                cutoff_um,
+                "a finite cut-off wavelength > 0 µm",
+            ));
+        }
+        Ok(())
     }
 
     /// A sampled curve, linearly interpolated between the nodes and **zero outside

@@ -34,7 +34,7 @@ cols = {cols}
 pitch_m = 24e-6
 active_width_m = 20e-6
 integration_time_s = 1e-3
-quantum_efficiency = {{ kind = "photon_detector", peak = 0.7, cutoff_um = 5.2 }}
+quantum_efficiency = {{ kind = "ideal_qe", peak = 0.7, cutoff_um = 5.2 }}
 "#
     );
     let o: Vec<String> = extra.iter().map(|s| s.to_string()).collect();

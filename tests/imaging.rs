@@ -36,7 +36,7 @@ cols = {cols}
 pitch_m = 24e-6
 active_width_m = 20e-6
 integration_time_s = 2.6e-3
-quantum_efficiency = {{ kind = "photon_detector", peak = 0.7, cutoff_um = 5.3 }}
+quantum_efficiency = {{ kind = "ideal_qe", peak = 0.7, cutoff_um = 5.3 }}
 "#
     );
     let o: Vec<String> = extra.iter().map(|s| s.to_string()).collect();

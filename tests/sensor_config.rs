@@ -20,7 +20,7 @@ cols = 48
 pitch_m = 24e-6
 active_width_m = 20e-6
 integration_time_s = 1e-3
-quantum_efficiency = { kind = "photon_detector", peak = 0.7, cutoff_um = 5.2 }
+quantum_efficiency = { kind = "ideal_qe", peak = 0.7, cutoff_um = 5.2 }
 "#;
 
 fn parse(text: &str, overrides: &[&str]) -> eoir::Result<SensorConfig> {
@@ -227,4 +227,14 @@ fn detector_at_nyquist_full_fill_is_two_over_pi() {
     let otf = SystemOtf::new(&s).unwrap();
     let v = otf.component(Component::Detector, s.nyquist_cy_per_rad(), 0.0, 4.0);
     assert!((v - 2.0 / std::f64::consts::PI).abs() < 1e-12);
+}
+
+/// A per-watt responsivity curve is not a quantum efficiency: the error says what to use.
+#[test]
+fn photon_detector_curve_is_rejected_as_quantum_efficiency() {
+    let text = MINIMAL.replace("kind = \"ideal_qe\"", "kind = \"photon_detector\"");
+    assert_one_line_error(
+        parse(&text, &[]),
+        &["detector.quantum_efficiency", "ideal_qe"],
+    );
 }

@@ -22,7 +22,7 @@
 //! pitch_m = 24e-6
 //! active_width_m = 20e-6
 //! integration_time_s = 2.6e-3
-//! quantum_efficiency = { kind = "photon_detector", peak = 0.7, cutoff_um = 5.2 }
+//! quantum_efficiency = { kind = "ideal_qe", peak = 0.7, cutoff_um = 5.2 }
 //! [jitter]
 //! sigma_rad = 20e-6
 //! ```
@@ -79,7 +79,17 @@ pub enum SpectrumConfig {
         #[serde(default = "one")]
         peak: f64,
     },
-    /// An ideal photon detector: `peak · λ/λc` below the cutoff, 0 above.
+    /// Quantum efficiency of an ideal photon detector: `peak` electrons per photon up to
+    /// the cutoff, 0 above.
+    IdealQe {
+        /// Quantum efficiency below the cutoff.
+        peak: f64,
+        /// Cutoff wavelength, µm.
+        cutoff_um: f64,
+    },
+    /// Relative responsivity per unit power of an ideal photon detector, `peak · λ/λc`
+    /// below the cutoff (the report's R_rel(λ)). Not valid as `quantum_efficiency`, which
+    /// counts electrons per photon: use `ideal_qe` there.
     PhotonDetector {
         /// Quantum efficiency at the cutoff wavelength.
         peak: f64,
@@ -132,6 +142,9 @@ impl SpectrumConfig {
                 fwhm_um,
                 peak,
             } => Spectrum::gaussian(*center_um, *fwhm_um, *peak).map_err(named),
+            SpectrumConfig::IdealQe { peak, cutoff_um } => {
+                Spectrum::ideal_quantum_efficiency(*peak, *cutoff_um).map_err(named)
+            }
             SpectrumConfig::PhotonDetector { peak, cutoff_um } => {
                 Spectrum::photon_detector(*peak, *cutoff_um).map_err(named)
             }
@@ -620,6 +633,15 @@ impl SensorConfig {
             ));
         }
         require_positive("detector.integration_time_s", d.integration_time_s)?;
+        if let SpectrumConfig::PhotonDetector { peak, cutoff_um } = &d.quantum_efficiency {
+            return Err(Error::param(
+                "detector.quantum_efficiency",
+                format!("{{ kind = \"photon_detector\", peak = {peak}, cutoff_um = {cutoff_um} }}"),
+                format!(
+                    "electrons per photon: `photon_detector` is a response per watt (∝ λ) and would count λ twice; an ideal detector's QE is {{ kind = \"ideal_qe\", peak = {peak}, cutoff_um = {cutoff_um} }}"
+                ),
+            ));
+        }
         require_positive("detector.full_well_e", d.full_well_e)?;
         if !(1..=16).contains(&d.bits) {
             return Err(Error::param(

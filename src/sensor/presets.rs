@@ -527,6 +527,10 @@ fn scaled_config(s: &SpectrumConfig, factor: f64) -> Option<SpectrumConfig> {
         SpectrumConfig::Constant { value } => SpectrumConfig::Constant {
             value: value * factor,
         },
+        SpectrumConfig::IdealQe { peak, cutoff_um } => SpectrumConfig::IdealQe {
+            peak: peak * factor,
+            cutoff_um: *cutoff_um,
+        },
         SpectrumConfig::TopHat {
             lo_um,
             hi_um,
