@@ -29,6 +29,19 @@ enum Command {
     Scene(run::SceneArgs),
     /// Print or plot the transfer functions (MTF) of a sensor along the x axis.
     Mtf(MtfArgs),
+    /// List the built-in sensor presets, or print one fully resolved (`sensors show NAME`).
+    Sensors(SensorsArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct SensorsArgs {
+    /// `show` to print a preset's resolved TOML.
+    action: Option<String>,
+    /// The preset to show.
+    name: Option<String>,
+    /// Select a preset option, e.g. `--option filter=3` (repeatable).
+    #[arg(long = "option", value_name = "NAME=VALUE")]
+    option: Vec<String>,
 }
 
 #[derive(Debug, clap::Args)]
@@ -36,6 +49,9 @@ struct MtfArgs {
     /// Sensor: a TOML file or a preset name.
     #[arg(long)]
     sensor: String,
+    /// Select a preset option, e.g. `--option filter=4 --option optics=100mm` (repeatable).
+    #[arg(long = "option", value_name = "NAME=VALUE")]
+    option: Vec<String>,
     /// Override a sensor field, e.g. `--set optics.f_number=2.5` (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
@@ -63,6 +79,7 @@ fn main() -> ExitCode {
         Command::Demo(args) => run::demo(args),
         Command::Scene(args) => run::scene(args),
         Command::Mtf(args) => mtf(args),
+        Command::Sensors(args) => sensors(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -96,8 +113,38 @@ fn parse_pair(text: &str, what: &str) -> Result<(f64, f64)> {
     Ok((a, b))
 }
 
+fn sensors(args: SensorsArgs) -> Result<()> {
+    match (args.action.as_deref(), args.name.as_deref()) {
+        (None, _) => {
+            for p in presets::list() {
+                println!("{:<12} {}", p.name, p.description);
+                for (opt, values) in &p.options {
+                    let default = p
+                        .defaults
+                        .iter()
+                        .find(|(o, _)| o == opt)
+                        .map(|(_, v)| format!(" (default {v})"))
+                        .unwrap_or_default();
+                    println!("{:<12}   --option {opt}={}{default}", "", values.join("|"));
+                }
+            }
+            Ok(())
+        }
+        (Some("show"), Some(name)) => {
+            print!("{}", presets::resolved_toml(name, &args.option)?);
+            Ok(())
+        }
+        (Some("show"), None) => {
+            bail!("`eoir sensors show NAME`: name a preset (see `eoir sensors`)")
+        }
+        (Some(other), _) => {
+            bail!("unknown action `{other}`: use `eoir sensors` or `eoir sensors show NAME`")
+        }
+    }
+}
+
 fn mtf(args: MtfArgs) -> Result<()> {
-    let sensor = presets::load(&args.sensor, &[], &args.set)?;
+    let sensor = presets::load(&args.sensor, &args.option, &args.set)?;
     for w in sensor.warnings() {
         eprintln!("warning: {w}");
     }

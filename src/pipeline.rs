@@ -4,7 +4,8 @@
 //! ```text
 //! read      io::open(path)                       CubeReader (band by band)
 //! image     imaging::Imager::mean_electrons       mean photo-electrons per pixel
-//! detect    imaging::ideal_dn                     DN (gain, offset, full well, ADC)
+//! detect    detector::DetectorInstance::expose    dark, shot noise, full well, FPN,
+//!                                                 nonlinearity, read noise, K, ADC, defects
 //! write     RunOutput::write                      dn.tiff/png, electrons_mean.tiff, config, report
 //! ```
 
@@ -14,8 +15,9 @@ use std::time::Instant;
 use ndarray::Array2;
 use serde_json::json;
 
+use crate::detector::{DetectorInstance, DetectorModel};
 use crate::error::{Error, Result};
-use crate::imaging::{ideal_dn, Imager, ImagingStats, DEFAULT_WRAP_TOLERANCE};
+use crate::imaging::{Imager, ImagingStats, DEFAULT_WRAP_TOLERANCE};
 use crate::io::{raster, CubeReader};
 use crate::scene::Geometry;
 use crate::sensor::SensorConfig;
@@ -31,6 +33,10 @@ pub struct RunOptions {
     pub wrap_tolerance: f64,
     /// Where the input came from (for the report).
     pub input_name: String,
+    /// Number of frames to expose of a single-frame (static) input: the mean image is
+    /// formed once and exposed `frames` times (fixed pattern identical, temporal noise
+    /// independent). Ignored for a multi-frame input.
+    pub frames: usize,
 }
 
 impl Default for RunOptions {
@@ -40,6 +46,7 @@ impl Default for RunOptions {
             geometry: None,
             wrap_tolerance: DEFAULT_WRAP_TOLERANCE,
             input_name: String::from("memory"),
+            frames: 1,
         }
     }
 }
@@ -75,6 +82,7 @@ pub fn run(
     mut progress: impl FnMut(usize, usize),
 ) -> Result<RunOutput> {
     let t_start = Instant::now();
+    let mut detector_s = 0.0;
     let meta = reader.meta().clone();
     let geometry = options.geometry.or(meta.geometry).ok_or_else(|| {
         Error::param(
@@ -87,21 +95,39 @@ pub fn run(
     warnings.extend(sensor.warnings());
     let imager = Imager::new(sensor, &meta, &geometry, options.wrap_tolerance)?;
     warnings.extend(imager.sampling().warnings.iter().cloned());
-    let n_frames = reader.frames();
+    let model = DetectorModel::from_config(sensor)?;
+    warnings.extend(model.warnings().iter().cloned());
+    let instance = DetectorInstance::new(&model, options.seed)?;
+    let input_frames = reader.frames();
+    let static_scene = input_frames == 1;
+    let n_frames = if static_scene {
+        options.frames.max(1)
+    } else {
+        input_frames
+    };
     let active = imager.weights().active_bands().len();
     let mut frames = Vec::with_capacity(n_frames);
     let mut stats = ImagingStats::default();
+    let mut mean: Option<Array2<f64>> = None;
     for f in 0..n_frames {
-        let (e, s) = imager.mean_electrons(reader, f, |b, _| {
-            progress(f * active + b, n_frames * active)
-        })?;
-        stats.read_s += s.read_s;
-        stats.fft_s += s.fft_s;
-        stats.otf_s += s.otf_s;
-        stats.inverse_s += s.inverse_s;
-        stats.bands_used += s.bands_used;
-        stats.padded_shape = s.padded_shape;
-        let dn = ideal_dn(sensor, &e);
+        if mean.is_none() || !static_scene {
+            let (e, s) = imager.mean_electrons(reader, f, |b, _| {
+                progress(f * active + b, input_frames * active)
+            })?;
+            stats.read_s += s.read_s;
+            stats.fft_s += s.fft_s;
+            stats.otf_s += s.otf_s;
+            stats.inverse_s += s.inverse_s;
+            stats.bands_used += s.bands_used;
+            stats.padded_shape = s.padded_shape;
+            mean = Some(e);
+        }
+        let e = mean
+            .as_ref()
+            .ok_or_else(|| Error::OutOfRange("no frame imaged".into()))?;
+        let t0 = Instant::now();
+        let dn = instance.expose(e, f as u64)?;
+        detector_s += t0.elapsed().as_secs_f64();
         frames.push(FrameProducts {
             electrons_mean: e.mapv(|v| v as f32),
             dn,
@@ -117,6 +143,7 @@ pub fn run(
         .filter(|(e, dn)| **e as f64 >= d.full_well_e || **dn as f64 >= d.max_dn())
         .count() as f64;
     let mean_e = first.electrons_mean.iter().map(|v| *v as f64).sum::<f64>() / n_px;
+    let noise_e = model.temporal_noise_e(mean_e);
     let mean_dn = first.dn.iter().map(|v| *v as f64).sum::<f64>() / n_px;
     let s = imager.sampling();
     let report = json!({
@@ -147,16 +174,25 @@ pub fn run(
         "detector": {
             "rows": d.rows,
             "cols": d.cols,
-            "gain_dn_per_e": d.gain(),
+            "gain_dn_per_e": model.gain_dn_per_e(),
+            "auto_gain_reference": model.auto_gain_reference().map(|(r, e)| format!("{r:?}: {e:.6e} e-")),
             "offset_dn": d.offset_dn,
             "bits": d.bits,
             "full_well_e": d.full_well_e,
-            "model": "ideal (no noise)",
+            "dark_e": model.dark_e(),
+            "background_e": model.background_e(),
+            "read_noise_e": model.read_noise_e(),
+            "shot_noise": model.shot_noise(),
+            "fpn": d.fpn.is_some(),
+            "nonlinearity": d.nonlinearity.is_some(),
+            "defects": d.defects.is_some(),
         },
         "signal": {
             "mean_electrons": mean_e,
             "mean_dn": mean_dn,
             "saturated_percent": 100.0 * saturated / n_px,
+            "temporal_noise_e": noise_e,
+            "snr": if noise_e > 0.0 { mean_e / noise_e } else { f64::INFINITY },
         },
         "warnings": warnings,
         "timings_s": {
@@ -164,6 +200,7 @@ pub fn run(
             "forward_fft": stats.fft_s,
             "otf_and_accumulate": stats.otf_s,
             "inverse_and_sampling": stats.inverse_s,
+            "detector": detector_s,
             "total": t_start.elapsed().as_secs_f64(),
         },
     });

@@ -25,9 +25,15 @@ pub struct RunArgs {
     /// Seed for all random effects.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Select a preset option, e.g. `--option filter=4` (repeatable).
+    #[arg(long = "option", value_name = "NAME=VALUE")]
+    option: Vec<String>,
     /// Override a sensor field, e.g. `--set detector.integration_time_s=2e-3` (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
+    /// Frames to expose of a static scene (fixed pattern identical, temporal noise fresh).
+    #[arg(long, default_value_t = 1)]
+    frames: usize,
     /// Scene field of view `H,V` in degrees, if the input file does not give one.
     #[arg(long, value_name = "H,V")]
     fov_deg: Option<String>,
@@ -45,6 +51,9 @@ pub struct DemoArgs {
     /// Sensor: a TOML file or a preset name.
     #[arg(long, default_value = "multimir")]
     sensor: String,
+    /// Select a preset option (repeatable).
+    #[arg(long = "option", value_name = "NAME=VALUE")]
+    option: Vec<String>,
     /// Override a sensor field (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
@@ -135,6 +144,7 @@ fn run_file(
     output: &Path,
     seed: u64,
     geometry: Option<Geometry>,
+    frames: usize,
     quiet: bool,
 ) -> Result<()> {
     let mut reader = eoir::io::open(input)?;
@@ -143,6 +153,7 @@ fn run_file(
         seed,
         geometry,
         input_name: input.display().to_string(),
+        frames,
         ..Default::default()
     };
     let out = pipeline::run(sensor, reader.as_mut(), &options, |done, total| {
@@ -167,7 +178,7 @@ fn run_file(
             sensor.detector.rows,
             r["sampling"]["ratio_x"].as_f64().unwrap_or(f64::NAN),
             r["sampling"]["method"].as_str().unwrap_or(""),
-            sensor.detector.gain(),
+            r["detector"]["gain_dn_per_e"].as_f64().unwrap_or(f64::NAN),
             r["signal"]["mean_electrons"].as_f64().unwrap_or(f64::NAN),
             r["signal"]["mean_dn"].as_f64().unwrap_or(f64::NAN),
             r["signal"]["saturated_percent"].as_f64().unwrap_or(f64::NAN),
@@ -182,7 +193,7 @@ fn run_file(
 
 /// `eoir run`.
 pub fn run(args: RunArgs) -> Result<()> {
-    let sensor = presets::load(&args.sensor, &[], &args.set)?;
+    let sensor = presets::load(&args.sensor, &args.option, &args.set)?;
     let geometry = match &args.fov_deg {
         Some(t) => {
             let (h, v) = super::parse_pair(t, "--fov-deg")?;
@@ -200,6 +211,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         &args.output,
         args.seed,
         geometry,
+        args.frames,
         args.quiet,
     )
 }
@@ -207,7 +219,7 @@ pub fn run(args: RunArgs) -> Result<()> {
 /// `eoir demo`: the thermal scene, sized to cover the sensor at `oversampling` scene samples
 /// per detector pixel and its spectral band, through the sensor.
 pub fn demo(args: DemoArgs) -> Result<()> {
-    let sensor = presets::load(&args.sensor, &[], &args.set)?;
+    let sensor = presets::load(&args.sensor, &args.option, &args.set)?;
     if args.oversampling == 0 {
         bail!("--oversampling must be at least 1");
     }
@@ -254,6 +266,7 @@ pub fn demo(args: DemoArgs) -> Result<()> {
         &args.output,
         args.seed,
         None,
+        1,
         args.quiet,
     )
 }

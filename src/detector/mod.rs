@@ -164,7 +164,7 @@ impl DetectorModel {
             full_well_e: d.full_well_e,
             max_dn: d.max_dn().min(u16::MAX as f64),
             offset_dn: d.offset_dn,
-            gain_dn_per_e: d.gain(),
+            gain_dn_per_e: d.manual_gain(),
             dark_e,
             background_e,
             shot_noise: d.shot_noise.unwrap_or(true),

@@ -748,15 +748,3 @@ impl Imager {
         }
     }
 }
-
-/// The ideal detector (until the detector model is configured): electrons clipped at the
-/// full well, DN = round(K·e + offset) clipped to [0, 2^bits − 1].
-pub fn ideal_dn(sensor: &SensorConfig, electrons: &Array2<f64>) -> Array2<u16> {
-    let d = &sensor.detector;
-    let k = d.gain();
-    let max = d.max_dn().min(u16::MAX as f64);
-    electrons.mapv(|e| {
-        let e = e.clamp(0.0, d.full_well_e);
-        (k * e + d.offset_dn).round().clamp(0.0, max) as u16
-    })
-}

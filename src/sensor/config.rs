@@ -277,8 +277,10 @@ impl DetectorConfig {
         2f64.powi(self.bits as i32) - 1.0
     }
 
-    /// Conversion gain K, DN/e-: the configured value, or full well → full scale.
-    pub fn gain(&self) -> f64 {
+    /// Conversion gain K, DN/e-, before any auto gain: the configured value, or full well
+    /// → full scale. The gain in use is `DetectorModel::gain_dn_per_e` (which applies
+    /// `[detector.auto_gain]`).
+    pub fn manual_gain(&self) -> f64 {
         self.gain_dn_per_e
             .unwrap_or_else(|| (self.max_dn() - self.offset_dn) / self.full_well_e)
     }
