@@ -56,8 +56,12 @@ impl Default for RunOptions {
 pub struct FrameProducts {
     /// Noise-free expected photo-electrons per pixel (the ground truth).
     pub electrons_mean: Array2<f32>,
-    /// Digital numbers.
+    /// Digital numbers (for a colour-filter-array sensor: the raw mosaic).
     pub dn: Array2<u16>,
+    /// For a colour-filter-array sensor: the demosaicked (Malvar–He–Cutler) colour image,
+    /// `[row, col, 3]`, stretched between the 0.5 and 99.5 percentiles with one common
+    /// scale (so grey stays grey).
+    pub rgb: Option<ndarray::Array3<u8>>,
 }
 
 /// Everything a run produced.
@@ -71,6 +75,23 @@ pub struct RunOutput {
     pub report: serde_json::Value,
     /// Warnings collected on the way.
     pub warnings: Vec<String>,
+}
+
+/// White-balance gains of the colour channels of a colour-filter-array sensor (all 1 for a
+/// single channel): each channel is scaled so that a spectrally grey surface lit by the sun
+/// (radiance shaped like a 5772 K blackbody) gives the same signal as in green.
+fn white_balance(channels: &[SensorConfig]) -> Result<Vec<f64>> {
+    if channels.len() != 3 {
+        return Ok(vec![1.0; channels.len()]);
+    }
+    let mut e = Vec::with_capacity(3);
+    for s in channels {
+        let resp = s.spectral_response()?;
+        let (lo, hi) = resp.support_um();
+        let sun = |l: f64| crate::radiometry::planck_spectral_radiance(l, 5772.0);
+        e.push(s.camera_equation()?.electrons_spectral(&resp, sun, lo, hi.min(50.0))?);
+    }
+    Ok(e.iter().map(|v| if *v > 0.0 { e[1] / v } else { 1.0 }).collect())
 }
 
 /// Runs the chain on every frame of `reader`. Nothing is written: call
@@ -93,7 +114,20 @@ pub fn run(
     })?;
     let mut warnings = reader.warnings();
     warnings.extend(sensor.warnings());
-    let imager = Imager::new(sensor, &meta, &geometry, options.wrap_tolerance)?;
+    // A colour-filter-array sensor is imaged once per filter colour (each through its own
+    // spectral response) and the three mean images are mosaicked before the detector.
+    let channel_sensors: Vec<SensorConfig> = match &sensor.cfa {
+        Some(_) => (0..3)
+            .map(|c| crate::sensor::presets::cfa_channel(sensor, c))
+            .collect::<Result<_>>()?,
+        None => vec![sensor.clone()],
+    };
+    let imagers: Vec<Imager> = channel_sensors
+        .iter()
+        .map(|s| Imager::new(s, &meta, &geometry, options.wrap_tolerance))
+        .collect::<Result<_>>()?;
+    let white_balance = white_balance(&channel_sensors)?;
+    let imager = &imagers[0];
     warnings.extend(imager.sampling().warnings.iter().cloned());
     let model = DetectorModel::from_config(sensor)?;
     warnings.extend(model.warnings().iter().cloned());
@@ -105,22 +139,33 @@ pub fn run(
     } else {
         input_frames
     };
-    let active = imager.weights().active_bands().len();
+    let active: usize = imagers.iter().map(|i| i.weights().active_bands().len()).sum();
     let mut frames = Vec::with_capacity(n_frames);
     let mut stats = ImagingStats::default();
     let mut mean: Option<Array2<f64>> = None;
     for f in 0..n_frames {
         if mean.is_none() || !static_scene {
-            let (e, s) = imager.mean_electrons(reader, f, |b, _| {
-                progress(f * active + b, input_frames * active)
-            })?;
-            stats.read_s += s.read_s;
-            stats.fft_s += s.fft_s;
-            stats.otf_s += s.otf_s;
-            stats.inverse_s += s.inverse_s;
-            stats.bands_used += s.bands_used;
-            stats.padded_shape = s.padded_shape;
-            mean = Some(e);
+            let mut planes = Vec::with_capacity(imagers.len());
+            let mut done = 0;
+            for im in &imagers {
+                let (e, s) = im.mean_electrons(reader, f, |b, _| {
+                    progress(f * active + done + b, input_frames * active)
+                })?;
+                done += s.bands_used;
+                stats.read_s += s.read_s;
+                stats.fft_s += s.fft_s;
+                stats.otf_s += s.otf_s;
+                stats.inverse_s += s.inverse_s;
+                stats.bands_used += s.bands_used;
+                stats.padded_shape = s.padded_shape;
+                planes.push(e);
+            }
+            mean = Some(match &sensor.cfa {
+                Some(cfa) => {
+                    crate::cfa::mosaic([&planes[0], &planes[1], &planes[2]], cfa.pattern)?
+                }
+                None => planes.swap_remove(0),
+            });
         }
         let e = mean
             .as_ref()
@@ -128,9 +173,28 @@ pub fn run(
         let t0 = Instant::now();
         let dn = instance.expose(e, f as u64)?;
         detector_s += t0.elapsed().as_secs_f64();
+        let rgb = match &sensor.cfa {
+            Some(cfa) => {
+                let raw = dn.mapv(|v| v as f64 - sensor.detector.offset_dn);
+                let mut planes = crate::cfa::demosaic_malvar(raw.view(), cfa.pattern);
+                for (c, g) in white_balance.iter().enumerate() {
+                    planes.index_axis_mut(ndarray::Axis(0), c).mapv_inplace(|v| v * g);
+                }
+                Some(crate::cfa::false_colour_common(
+                    [
+                        planes.index_axis(ndarray::Axis(0), 0),
+                        planes.index_axis(ndarray::Axis(0), 1),
+                        planes.index_axis(ndarray::Axis(0), 2),
+                    ],
+                    0.5,
+                )?)
+            }
+            None => None,
+        };
         frames.push(FrameProducts {
             electrons_mean: e.mapv(|v| v as f32),
             dn,
+            rgb,
         });
     }
     let d = &sensor.detector;
@@ -240,6 +304,11 @@ impl RunOutput {
             let p = dir.join(format!("{prefix}electrons_mean.exr"));
             raster::write_exr_f32(&p, f.electrons_mean.view(), "electrons_mean")?;
             written.push(p);
+            if let Some(rgb) = &f.rgb {
+                let p = dir.join(format!("{prefix}rgb.png"));
+                raster::write_png_rgb8(&p, rgb.view())?;
+                written.push(p);
+            }
         }
         #[cfg(feature = "hdf5")]
         {
