@@ -226,19 +226,29 @@ fn flat_field_e(chain: &Chain, cos4: Option<&Array2<f64>>, t_k: f64) -> Result<A
     })
 }
 
-/// Per-pixel average of `frames` exposures of `mean_e` with frame indices `first + i`.
+/// Per-pixel average of `frames` exposures of `mean_e` with frame indices `first + i`, and
+/// the mask of pixels that read 0 or `max_dn` (ADC-clipped) in at least one frame.
 fn average_frames(
     instance: &DetectorInstance,
     mean_e: &Array2<f64>,
     first: u64,
     frames: usize,
-) -> Result<Array2<f64>> {
+) -> Result<(Array2<f64>, Array2<bool>)> {
+    let max = instance.model().max_dn();
     let mut sum = Array2::<f64>::zeros(mean_e.dim());
+    let mut clipped = Array2::from_elem(mean_e.dim(), false);
     for i in 0..frames {
         let dn = instance.expose(mean_e, first + i as u64)?;
-        Zip::from(&mut sum).and(&dn).for_each(|s, &d| *s += d as f64);
+        Zip::from(&mut sum)
+            .and(&mut clipped)
+            .and(&dn)
+            .for_each(|s, c, &d| {
+                let v = d as f64;
+                *s += v;
+                *c |= v <= 0.0 || v >= max;
+            });
     }
-    Ok(sum / frames as f64)
+    Ok((sum / frames as f64, clipped))
 }
 
 /// A stack `[frame, row, col]` of `frames` exposures of `mean_e` from frame index `first`.
@@ -252,7 +262,9 @@ fn stack_frames(
     let mut stack = Array3::zeros((frames, rows, cols));
     for (i, mut plane) in stack.axis_iter_mut(Axis(0)).enumerate() {
         let dn = instance.expose(mean_e, first + i as u64)?;
-        Zip::from(&mut plane).and(&dn).for_each(|p, &d| *p = d as f64);
+        Zip::from(&mut plane)
+            .and(&dn)
+            .for_each(|p, &d| *p = d as f64);
     }
     Ok(stack)
 }
@@ -303,12 +315,12 @@ impl Calibration {
         // Calibration levels: averaged frames and their ideal-DN references.
         let m = opts.frames_per_level;
         let mut averages = Vec::with_capacity(opts.temperatures_k.len());
+        let mut clipped = Array2::from_elem((rows, cols), false);
         for (l, &t) in opts.temperatures_k.iter().enumerate() {
             let e = chain.camera.electrons_blackbody(t, &chain.response)?;
             let total = e + model.dark_e() + model.background_e();
             let reference = model.expected_dn(e);
-            if !(total < model.full_well_e() && reference > 0.0 && reference < model.max_dn())
-            {
+            if !(total < model.full_well_e() && reference > 0.0 && reference < model.max_dn()) {
                 return Err(Error::param(
                     format!("temperatures_k[{l}]"),
                     t,
@@ -321,7 +333,9 @@ impl Calibration {
             }
             let mean_e = flat_field_e(&chain, cos4.as_ref(), t)?;
             let first = CALIBRATION_FRAME_BASE + (l * m) as u64;
-            averages.push((t, reference, average_frames(instance, &mean_e, first, m)?));
+            let (avg, clip) = average_frames(instance, &mean_e, first, m)?;
+            Zip::from(&mut clipped).and(&clip).for_each(|a, &b| *a |= b);
+            averages.push((t, reference, avg));
         }
         let levels: Vec<(f64, ArrayView2<f64>)> =
             averages.iter().map(|(_, r, a)| (*r, a.view())).collect();
@@ -359,7 +373,10 @@ impl Calibration {
             ..BadPixelCriteria::default()
         };
         let detection = bad_pixels::detect(coldest.view(), hottest.view(), &criteria)?;
-        let bad = detection.map.union(&nuc.rank_deficient_map())?;
+        let bad = detection
+            .map
+            .union(&nuc.rank_deficient_map())?
+            .union(&BadPixelMap::from_mask(clipped))?;
 
         // Lookup tables on the range where DN* rises.
         let (t_lo, t_hi) = opts.lut_range_k;
@@ -467,10 +484,10 @@ impl Calibration {
 
     /// Scene DN → corrected DN: the NUC polynomial per pixel; raw values at the ADC limits
     /// (0 or 2^bits − 1: clipped, carrying no scene information) become NaN; then flagged
-    /// bad pixels are replaced by the median of their valid neighbours
-    /// ([`bad_pixels::replace`]).
+    /// bad pixels are replaced by the median of their valid 3×3 neighbours
+    /// ([`bad_pixels::replace`]), or become NaN when they have none.
     ///
-    /// Errors: a frame of another shape, or no valid pixel to replace defects from.
+    /// Errors: a frame of another shape.
     pub fn correct(&self, dn: ArrayView2<u16>) -> Result<Array2<f64>> {
         let max = self.chain.model.max_dn();
         let raw = dn.mapv(|v| v as f64);
@@ -480,7 +497,43 @@ impl Calibration {
                 *o = f64::NAN;
             }
         });
-        bad_pixels::replace(out.view(), &self.bad)
+        self.replace_bad(out)
+    }
+
+    /// Replaces the flagged pixels of a corrected frame by the median of their valid 3×3
+    /// neighbours ([`bad_pixels::replace`]); a flagged pixel without any valid (unflagged,
+    /// finite) neighbour in its 3×3 window becomes NaN rather than borrowing a value from
+    /// farther away (e.g. across a saturated region).
+    fn replace_bad(&self, corrected: Array2<f64>) -> Result<Array2<f64>> {
+        if self.bad.count() == 0 {
+            return Ok(corrected);
+        }
+        let (rows, cols) = corrected.dim();
+        let mask = self.bad.mask();
+        let isolated: Vec<(usize, usize)> = self
+            .bad
+            .positions()
+            .into_iter()
+            .filter(|&(r, c)| {
+                let (r0, r1) = (r.saturating_sub(1), (r + 1).min(rows - 1));
+                let (c0, c1) = (c.saturating_sub(1), (c + 1).min(cols - 1));
+                !(r0..=r1)
+                    .any(|i| (c0..=c1).any(|j| !mask[[i, j]] && corrected[[i, j]].is_finite()))
+            })
+            .collect();
+        let any_valid = corrected
+            .indexed_iter()
+            .any(|(p, v)| v.is_finite() && !mask[p]);
+        // With no valid pixel anywhere every flagged pixel is isolated (set NaN below).
+        let mut out = if any_valid {
+            bad_pixels::replace(corrected.view(), &self.bad)?
+        } else {
+            corrected
+        };
+        for (r, c) in isolated {
+            out[[r, c]] = f64::NAN;
+        }
+        Ok(out)
     }
 
     /// As [`Calibration::correct`] for a frame already in f64 (e.g. an average of frames).
@@ -494,7 +547,7 @@ impl Calibration {
                 *o = f64::NAN;
             }
         });
-        bad_pixels::replace(out.view(), &self.bad)
+        self.replace_bad(out)
     }
 
     /// Corrected DN → `(apparent temperature K, in-band radiance W m-2 sr-1, NaN count)`:
@@ -530,7 +583,7 @@ impl Calibration {
     ) -> Result<(f64, f64)> {
         require_positive("t_k", t_k)?;
         let mean_e = flat_field_e(&self.chain, self.cos4.as_ref(), t_k)?;
-        let avg = average_frames(
+        let (avg, _) = average_frames(
             instance,
             &mean_e,
             VALIDATION_FRAME_BASE,
