@@ -260,3 +260,48 @@ fn invalid_options_are_errors() {
     assert!(Calibration::new(&s, &model, &inst, &zero_frames).is_err());
     assert!(measured_netd(&s, &inst, 300.0, 0.25, 1, None).is_err());
 }
+
+/// With `optics.cos4` (15 mm optics: up to 1.8 % fall-off at the corners) the flat field
+/// through the instance carries the cos⁴θ roll-off; the NUC, referenced to the on-axis
+/// ideal DN, removes it, so a uniform 300 K scene still reads 300 K everywhere.
+#[test]
+fn cos4_rolloff_is_flattened_by_the_nuc() {
+    let s = presets::load(
+        "multimir",
+        &["optics=15mm".to_string()],
+        &[
+            "detector.rows=64",
+            "detector.cols=80",
+            "detector.read_noise_e=200",
+            "detector.fpn.prnu_sigma_rel=0.02",
+            "detector.fpn.dsnu_sigma_e=2e4",
+            "detector.auto_gain.reference_temperature_k=300",
+            "optics.cos4=true",
+        ]
+        .map(String::from),
+    )
+    .unwrap();
+    assert!(s.optics.cos4);
+    let model = DetectorModel::from_config(&s).unwrap();
+    let inst = DetectorInstance::new(&model, SEED).unwrap();
+    let cal = Calibration::new(&s, &model, &inst, &CalibrationOptions::default()).unwrap();
+    let (raw, cor) = cal.residual_nonuniformity(&inst, 310.0).unwrap();
+    assert!(cor * 10.0 < raw, "raw {raw} corrected {cor}");
+    // The scene as the imaging engine delivers it: uniform radiance × cos⁴θ per pixel.
+    let e = cal.blackbody_electrons(300.0).unwrap();
+    let d = s.ifov_rad();
+    let mean_e = Array2::from_shape_fn((64, 80), |(r, c)| {
+        let (y, x) = ((r as f64 - 31.5) * d, (c as f64 - 39.5) * d);
+        e / (1.0 + x * x + y * y).powi(2)
+    });
+    let corrected = cal
+        .correct(inst.expose(&mean_e, 1).unwrap().view())
+        .unwrap();
+    let (t, _, nan) = cal.to_temperature(corrected.view());
+    assert_eq!(nan, 0);
+    let netd = cal.netd_analytic_k(300.0).unwrap();
+    let corner = (t[[0, 0]] + t[[0, 79]] + t[[63, 0]] + t[[63, 79]]) / 4.0;
+    let (mt, _, _) = mean_std(t.iter().copied());
+    assert!((mt - 300.0).abs() < 0.05, "mean {mt}");
+    assert!((corner - 300.0).abs() < 5.0 * netd, "corners {corner}");
+}
