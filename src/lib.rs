@@ -26,6 +26,7 @@
 #![warn(missing_docs)]
 
 pub mod atmosphere;
+pub mod calibration;
 pub mod cfa;
 pub mod constants;
 pub mod detector;

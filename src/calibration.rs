@@ -1,0 +1,681 @@
+//! Radiometric calibration through the simulated sensor: "the way back" from DN to
+//! apparent temperature and in-band radiance (issue 4; DESIGN.md §1 processing, §4.9).
+//!
+//! [`Calibration::new`] does what a laboratory does with a real camera: it views a
+//! uniform blackbody at a few temperatures *through the same detector instance* that
+//! records the scene (same fixed pattern and defects; fresh temporal noise, frame indices
+//! from [`CALIBRATION_FRAME_BASE`] on, far from scene frames), averages M frames per level
+//! and derives
+//!
+//! 1. the per-pixel polynomial NUC ([`NucCoefficients`]) mapping each pixel's DN onto the
+//!    **ideal DN** of the mean detector model, `DN*(T) = model.expected_dn(μ_e(T))`, with
+//!    `μ_e(T) = camera_equation.electrons_blackbody(T, S)` (DESIGN.md §4.1; S the spectral
+//!    response τ_filter τ_optics τ_atm η). A uniform blackbody gives uniform mean electrons
+//!    (blur preserves the mean); when `optics.cos4` is on, each pixel's electrons are
+//!    multiplied by its cos⁴θ (θ the off-axis angle of the pixel centre, as the imaging
+//!    engine does), and because the reference stays the on-axis DN*, the NUC also flattens
+//!    the cos⁴ roll-off: corrected DN are "on-axis equivalent";
+//! 2. the bad-pixel map: [`bad_pixels::detect`] on the coldest and hottest level averages,
+//!    united with the pixels the NUC fit could not determine;
+//! 3. two lookup tables of the sensor's own blackbody response (DESIGN.md §4.9):
+//!    `T → DN*(T)` (inverted for the apparent temperature) and `T → L_band(T)`, the
+//!    **in-band radiance** defined here as
+//!
+//!    `L_band(T) = ∫ S(λ) L_λ(λ, T) dλ / max_λ S(λ)`,  W m-2 sr-1,
+//!
+//!    i.e. the blackbody radiance weighted by the normalised spectral response (peak 1), so
+//!    that for a flat-topped band it is the radiance within the band.
+//!
+//! The DN table covers `lut_range_k` trimmed to where DN* rises strictly: above the
+//! temperature at which the ideal pixel reaches full scale (ADC or full well) DN* is flat
+//! and no temperature can be recovered. Corrected values outside the table become NaN and
+//! are counted; raw DN at the ADC limits (0 or 2^bits − 1) are clipped measurements and
+//! also become NaN (unless the pixel is a flagged defect, which is replaced), so a
+//! saturated pixel never yields a wrong temperature.
+
+use ndarray::{Array2, Array3, ArrayView2, Axis, Zip};
+
+use crate::detector::{DetectorInstance, DetectorModel};
+use crate::error::{require_positive, Error, Result};
+use crate::processing::bad_pixels::{self, BadPixelCriteria, BadPixelMap};
+use crate::processing::netd;
+use crate::processing::nuc::{self, NucCoefficients};
+use crate::radiometry::{band_radiance, CameraEquation, TemperatureLut};
+use crate::sensor::SensorConfig;
+use crate::spectrum::Spectrum;
+
+/// First frame index of the calibration frames: level l, frame i uses
+/// `CALIBRATION_FRAME_BASE + l·M + i` (independent temporal noise from scene frames, which
+/// count from 0).
+pub const CALIBRATION_FRAME_BASE: u64 = 1_000_000;
+/// First frame index of the flat fields of [`Calibration::residual_nonuniformity`].
+pub const VALIDATION_FRAME_BASE: u64 = 2_000_000;
+/// First frame index of the frames of [`measured_netd`] (T at `+i`, T + ΔT at
+/// `+1_000_000 + i`).
+pub const NETD_FRAME_BASE: u64 = 3_000_000;
+
+/// Points of the grid (plus the breakpoints) on which the peak of the spectral response is
+/// searched: exact for piecewise-linear curves (top-hats, tables; the maximum lies on a
+/// breakpoint or a flat top), ~1e-6 relative for a Gaussian (grid step ≈ 0.004 σ).
+const PEAK_SEARCH_POINTS: usize = 4096;
+
+/// Temperature step (K) used to test that DN* still rises at a temperature.
+const RISE_STEP_K: f64 = 0.01;
+
+/// Options of [`Calibration::new`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrationOptions {
+    /// Blackbody temperatures of the calibration levels, K (at least `degree + 1`, distinct).
+    /// Default [280, 300, 320].
+    pub temperatures_k: Vec<f64>,
+    /// Frames averaged per level (M ≥ 1). Default 16.
+    pub frames_per_level: usize,
+    /// Degree N of the per-pixel NUC polynomial (1 = gain and offset). Default 1.
+    pub degree: usize,
+    /// Temperature range of the lookup tables, K (trimmed at the top where the ideal pixel
+    /// saturates). Default (200, 500).
+    pub lut_range_k: (f64, f64),
+}
+
+impl Default for CalibrationOptions {
+    fn default() -> Self {
+        CalibrationOptions {
+            temperatures_k: vec![280.0, 300.0, 320.0],
+            frames_per_level: 16,
+            degree: 1,
+            lut_range_k: (200.0, 500.0),
+        }
+    }
+}
+
+impl CalibrationOptions {
+    /// Checks every option, naming the field.
+    pub fn validate(&self) -> Result<()> {
+        for (l, &t) in self.temperatures_k.iter().enumerate() {
+            require_positive(&format!("temperatures_k[{l}]"), t)?;
+        }
+        let mut sorted = self.temperatures_k.clone();
+        sorted.sort_by(f64::total_cmp);
+        sorted.dedup();
+        if sorted.len() < 2 || sorted.len() < self.degree + 1 {
+            return Err(Error::param(
+                "temperatures_k",
+                format!("{} distinct temperature(s)", sorted.len()),
+                format!(
+                    "at least max(2, degree + 1) = {} distinct blackbody temperatures",
+                    (self.degree + 1).max(2)
+                ),
+            ));
+        }
+        if self.degree > nuc::MAX_DEGREE {
+            return Err(Error::param(
+                "degree",
+                self.degree,
+                format!("a NUC degree from 0 to {}", nuc::MAX_DEGREE),
+            ));
+        }
+        if self.frames_per_level == 0 {
+            return Err(Error::param(
+                "frames_per_level",
+                0,
+                "at least 1 frame per calibration level",
+            ));
+        }
+        let (lo, hi) = self.lut_range_k;
+        require_positive("lut_range_k.0", lo)?;
+        if !(hi.is_finite() && hi > lo) {
+            return Err(Error::param(
+                "lut_range_k.1",
+                hi,
+                format!("a finite temperature in K above lut_range_k.0 = {lo}"),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The sensor's blackbody response chain (everything needed to evaluate DN*(T), μ_e(T)
+/// and L_band(T)); cheap to clone into the lookup-table closures.
+#[derive(Debug, Clone)]
+struct Chain {
+    camera: CameraEquation,
+    response: Spectrum,
+    model: DetectorModel,
+    peak_response: f64,
+}
+
+impl Chain {
+    /// Mean signal electrons of an on-axis pixel viewing a blackbody at `t_k`
+    /// (camera equation, DESIGN.md §4.1); NaN if the band integral fails.
+    fn electrons(&self, t_k: f64) -> f64 {
+        self.camera
+            .electrons_blackbody(t_k, &self.response)
+            .unwrap_or(f64::NAN)
+    }
+
+    /// Ideal DN `model.expected_dn(μ_e(T))` of the mean detector model.
+    fn ideal_dn(&self, t_k: f64) -> f64 {
+        self.model.expected_dn(self.electrons(t_k))
+    }
+
+    /// In-band radiance `∫ S L_λ dλ / max S`, W m-2 sr-1 (module documentation).
+    fn band_radiance(&self, t_k: f64) -> f64 {
+        band_radiance(t_k, &self.response).unwrap_or(f64::NAN) / self.peak_response
+    }
+
+    /// Whether DN* at `t_k` is finite, inside (0, max DN) and still rising.
+    fn rising(&self, t_k: f64) -> bool {
+        let d0 = self.ideal_dn(t_k);
+        let d1 = self.ideal_dn(t_k + RISE_STEP_K);
+        d0.is_finite() && d1.is_finite() && d0 > 0.0 && d1 < self.model.max_dn() && d1 > d0
+    }
+}
+
+/// The result of a calibration: NUC coefficients, bad-pixel map and the lookup tables of
+/// the sensor's own blackbody response (see the module documentation).
+#[derive(Debug)]
+pub struct Calibration {
+    chain: Chain,
+    nuc: NucCoefficients,
+    bad: BadPixelMap,
+    dn_lut: TemperatureLut,
+    radiance_lut: TemperatureLut,
+    cos4: Option<Array2<f64>>,
+    frames_per_level: usize,
+    temperatures_k: Vec<f64>,
+}
+
+/// The cos⁴θ relative illumination of each pixel centre (θ from the IFOV and the pixel's
+/// offset from the array centre, tan²θ = x² + y²), as applied by the imaging engine
+/// (DESIGN.md §4.1). Private copy: the engine's helper is not public.
+fn cos4_map(sensor: &SensorConfig, rows: usize, cols: usize) -> Array2<f64> {
+    let d = sensor.ifov_rad();
+    Array2::from_shape_fn((rows, cols), |(r, c)| {
+        let y = (r as f64 - (rows as f64 - 1.0) / 2.0) * d;
+        let x = (c as f64 - (cols as f64 - 1.0) / 2.0) * d;
+        let cos2 = 1.0 / (1.0 + x * x + y * y);
+        cos2 * cos2
+    })
+}
+
+/// Largest value of `s` on its breakpoints and a [`PEAK_SEARCH_POINTS`] grid over its
+/// support.
+fn peak_of(s: &Spectrum) -> f64 {
+    let (lo, hi) = s.support_um();
+    let mut peak = s
+        .breakpoints_um()
+        .into_iter()
+        .map(|w| s.eval(w))
+        .fold(0.0, f64::max);
+    if lo.is_finite() && hi.is_finite() && hi > lo {
+        for k in 0..=PEAK_SEARCH_POINTS {
+            let w = lo + (hi - lo) * k as f64 / PEAK_SEARCH_POINTS as f64;
+            peak = peak.max(s.eval(w));
+        }
+    }
+    peak
+}
+
+/// The mean-electron frame of a uniform blackbody at `t_k` (× cos⁴ when enabled).
+fn flat_field_e(chain: &Chain, cos4: Option<&Array2<f64>>, t_k: f64) -> Result<Array2<f64>> {
+    let (rows, cols) = (chain.model.rows(), chain.model.cols());
+    let e = chain.camera.electrons_blackbody(t_k, &chain.response)?;
+    Ok(match cos4 {
+        Some(m) => m.mapv(|c| c * e),
+        None => Array2::from_elem((rows, cols), e),
+    })
+}
+
+/// Per-pixel average of `frames` exposures of `mean_e` with frame indices `first + i`, and
+/// the mask of pixels that read 0 or `max_dn` (ADC-clipped) in at least one frame.
+fn average_frames(
+    instance: &DetectorInstance,
+    mean_e: &Array2<f64>,
+    first: u64,
+    frames: usize,
+) -> Result<(Array2<f64>, Array2<bool>)> {
+    let max = instance.model().max_dn();
+    let mut sum = Array2::<f64>::zeros(mean_e.dim());
+    let mut clipped = Array2::from_elem(mean_e.dim(), false);
+    for i in 0..frames {
+        let dn = instance.expose(mean_e, first + i as u64)?;
+        Zip::from(&mut sum)
+            .and(&mut clipped)
+            .and(&dn)
+            .for_each(|s, c, &d| {
+                let v = d as f64;
+                *s += v;
+                *c |= v <= 0.0 || v >= max;
+            });
+    }
+    Ok((sum / frames as f64, clipped))
+}
+
+/// A stack `[frame, row, col]` of `frames` exposures of `mean_e` from frame index `first`.
+fn stack_frames(
+    instance: &DetectorInstance,
+    mean_e: &Array2<f64>,
+    first: u64,
+    frames: usize,
+) -> Result<Array3<f64>> {
+    let (rows, cols) = mean_e.dim();
+    let mut stack = Array3::zeros((frames, rows, cols));
+    for (i, mut plane) in stack.axis_iter_mut(Axis(0)).enumerate() {
+        let dn = instance.expose(mean_e, first + i as u64)?;
+        Zip::from(&mut plane)
+            .and(&dn)
+            .for_each(|p, &d| *p = d as f64);
+    }
+    Ok(stack)
+}
+
+impl Calibration {
+    /// Calibrates `instance` (drawn from `model`, the detector of `sensor`) against uniform
+    /// blackbodies at `opts.temperatures_k` (see the module documentation for the method,
+    /// the frame indices and the definition of the in-band radiance).
+    ///
+    /// Errors: invalid options; an instance of another shape than the model; a
+    /// calibration level whose ideal DN is at or beyond the ADC limits or full well (the
+    /// fit would see clipped data; choose lower temperatures or a lower gain); a spectral
+    /// response without a bounded band; a LUT range whose lower end already saturates;
+    /// errors of the NUC fit or bad-pixel detection.
+    pub fn new(
+        sensor: &SensorConfig,
+        model: &DetectorModel,
+        instance: &DetectorInstance,
+        opts: &CalibrationOptions,
+    ) -> Result<Self> {
+        opts.validate()?;
+        let (rows, cols) = (model.rows(), model.cols());
+        let im = instance.model();
+        if (im.rows(), im.cols()) != (rows, cols) {
+            return Err(Error::param(
+                "instance",
+                format!("{} x {} pixels", im.rows(), im.cols()),
+                format!("an instance of the model's {rows} x {cols} detector"),
+            ));
+        }
+        let response = sensor.spectral_response()?;
+        let peak_response = peak_of(&response);
+        if !(peak_response.is_finite() && peak_response > 0.0) {
+            return Err(Error::param(
+                "spectral response",
+                peak_response,
+                "a response with a positive peak inside a bounded band",
+            ));
+        }
+        let chain = Chain {
+            camera: sensor.camera_equation()?,
+            response,
+            model: model.clone(),
+            peak_response,
+        };
+        let cos4 = sensor.optics.cos4.then(|| cos4_map(sensor, rows, cols));
+
+        // Calibration levels: averaged frames and their ideal-DN references.
+        let m = opts.frames_per_level;
+        let mut averages = Vec::with_capacity(opts.temperatures_k.len());
+        let mut clipped = Array2::from_elem((rows, cols), false);
+        for (l, &t) in opts.temperatures_k.iter().enumerate() {
+            let e = chain.camera.electrons_blackbody(t, &chain.response)?;
+            let total = e + model.dark_e() + model.background_e();
+            let reference = model.expected_dn(e);
+            if !(total < model.full_well_e() && reference > 0.0 && reference < model.max_dn()) {
+                return Err(Error::param(
+                    format!("temperatures_k[{l}]"),
+                    t,
+                    format!(
+                        "a blackbody the ideal pixel records unclipped (it gives {total:.4e} e- of full well {:.4e} and {reference:.1} DN of (0, {}))",
+                        model.full_well_e(),
+                        model.max_dn()
+                    ),
+                ));
+            }
+            let mean_e = flat_field_e(&chain, cos4.as_ref(), t)?;
+            let first = CALIBRATION_FRAME_BASE + (l * m) as u64;
+            let (avg, clip) = average_frames(instance, &mean_e, first, m)?;
+            Zip::from(&mut clipped).and(&clip).for_each(|a, &b| *a |= b);
+            averages.push((t, reference, avg));
+        }
+        let levels: Vec<(f64, ArrayView2<f64>)> =
+            averages.iter().map(|(_, r, a)| (*r, a.view())).collect();
+        let nuc = NucCoefficients::fit(&levels, opts.degree)?;
+
+        // Bad pixels from the coldest and hottest levels.
+        let coldest = averages
+            .iter()
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|a| &a.2);
+        let hottest = averages
+            .iter()
+            .max_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|a| &a.2);
+        let (Some(coldest), Some(hottest)) = (coldest, hottest) else {
+            return Err(Error::param(
+                "temperatures_k",
+                "none",
+                "at least two blackbody temperatures",
+            ));
+        };
+        // Floor on the robust σ: the temporal noise left in an M-frame average plus the
+        // quantisation step, so a nearly uniform array does not flag pixels one count off.
+        let t_cold = opts
+            .temperatures_k
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
+        let noise = model.temporal_noise_dn(chain.electrons(t_cold));
+        let min_sigma = ((noise * noise + model.quantisation_noise_dn().powi(2)) / m as f64)
+            .sqrt()
+            .max(model.quantisation_noise_dn());
+        let criteria = BadPixelCriteria {
+            min_sigma,
+            ..BadPixelCriteria::default()
+        };
+        let detection = bad_pixels::detect(coldest.view(), hottest.view(), &criteria)?;
+        let bad = detection
+            .map
+            .union(&nuc.rank_deficient_map())?
+            .union(&BadPixelMap::from_mask(clipped))?;
+
+        // Lookup tables on the range where DN* rises.
+        let (t_lo, t_hi) = opts.lut_range_k;
+        if !chain.rising(t_lo) {
+            return Err(Error::param(
+                "lut_range_k.0",
+                t_lo,
+                "a lower LUT temperature at which the ideal pixel is not clipped and its DN rises with temperature",
+            ));
+        }
+        let top = if chain.rising(t_hi) {
+            t_hi
+        } else {
+            // Bisection for the last rising temperature (to 1 mK), then step back.
+            let (mut a, mut b) = (t_lo, t_hi);
+            while b - a > 1e-3 {
+                let mid = 0.5 * (a + b);
+                if chain.rising(mid) {
+                    a = mid;
+                } else {
+                    b = mid;
+                }
+            }
+            a
+        };
+        if top <= t_lo {
+            return Err(Error::param(
+                "lut_range_k",
+                format!("({t_lo}, {t_hi})"),
+                "a range in which the ideal pixel is unclipped over more than one point",
+            ));
+        }
+        let c1 = chain.clone();
+        let dn_lut = TemperatureLut::new(move |t| c1.ideal_dn(t), t_lo, top)?;
+        let c2 = chain.clone();
+        let radiance_lut = TemperatureLut::new(move |t| c2.band_radiance(t), t_lo, top)?;
+
+        Ok(Calibration {
+            chain,
+            nuc,
+            bad,
+            dn_lut,
+            radiance_lut,
+            cos4,
+            frames_per_level: m,
+            temperatures_k: opts.temperatures_k.clone(),
+        })
+    }
+
+    /// The per-pixel NUC coefficients (raw DN → ideal DN).
+    pub fn nuc(&self) -> &NucCoefficients {
+        &self.nuc
+    }
+
+    /// The bad-pixel map (detected defects ∪ pixels the NUC fit could not determine).
+    pub fn bad_pixels(&self) -> &BadPixelMap {
+        &self.bad
+    }
+
+    /// The lookup table `T → DN*(T)` (ideal DN of the mean model).
+    pub fn dn_lut(&self) -> &TemperatureLut {
+        &self.dn_lut
+    }
+
+    /// The lookup table `T → L_band(T)`, in-band radiance W m-2 sr-1 (module documentation).
+    pub fn radiance_lut(&self) -> &TemperatureLut {
+        &self.radiance_lut
+    }
+
+    /// Temperatures of the calibration levels, K.
+    pub fn temperatures_k(&self) -> &[f64] {
+        &self.temperatures_k
+    }
+
+    /// Temperature range `(t_min, t_max)` K of the tables (the top trimmed where the ideal
+    /// pixel saturates).
+    pub fn lut_range_k(&self) -> (f64, f64) {
+        self.dn_lut.range_k()
+    }
+
+    /// Peak of the spectral response S, the normalisation of the in-band radiance.
+    pub fn peak_response(&self) -> f64 {
+        self.chain.peak_response
+    }
+
+    /// Ideal DN `DN*(T) = model.expected_dn(camera_equation.electrons_blackbody(T, S))`.
+    pub fn ideal_dn(&self, t_k: f64) -> f64 {
+        self.chain.ideal_dn(t_k)
+    }
+
+    /// Mean signal electrons of an on-axis pixel viewing a blackbody at `t_k`
+    /// (camera equation, DESIGN.md §4.1).
+    ///
+    /// Errors: invalid temperature or an unbounded spectral response.
+    pub fn blackbody_electrons(&self, t_k: f64) -> Result<f64> {
+        self.chain
+            .camera
+            .electrons_blackbody(t_k, &self.chain.response)
+    }
+
+    /// In-band radiance `L_band(T) = ∫ S L_λ(λ, T) dλ / max S`, W m-2 sr-1.
+    pub fn band_radiance(&self, t_k: f64) -> f64 {
+        self.chain.band_radiance(t_k)
+    }
+
+    /// Scene DN → corrected DN: the NUC polynomial per pixel; raw values at the ADC limits
+    /// (0 or 2^bits − 1: clipped, carrying no scene information) become NaN; then flagged
+    /// bad pixels are replaced by the median of their valid 3×3 neighbours
+    /// ([`bad_pixels::replace`]), or become NaN when they have none.
+    ///
+    /// Errors: a frame of another shape.
+    pub fn correct(&self, dn: ArrayView2<u16>) -> Result<Array2<f64>> {
+        let max = self.chain.model.max_dn();
+        let raw = dn.mapv(|v| v as f64);
+        let mut out = self.nuc.apply(raw.view())?;
+        Zip::from(&mut out).and(&raw).for_each(|o, &r| {
+            if r <= 0.0 || r >= max {
+                *o = f64::NAN;
+            }
+        });
+        self.replace_bad(out)
+    }
+
+    /// Replaces the flagged pixels of a corrected frame by the median of their valid 3×3
+    /// neighbours ([`bad_pixels::replace`]); a flagged pixel without any valid (unflagged,
+    /// finite) neighbour in its 3×3 window becomes NaN rather than borrowing a value from
+    /// farther away (e.g. across a saturated region).
+    fn replace_bad(&self, corrected: Array2<f64>) -> Result<Array2<f64>> {
+        if self.bad.count() == 0 {
+            return Ok(corrected);
+        }
+        let (rows, cols) = corrected.dim();
+        let mask = self.bad.mask();
+        let isolated: Vec<(usize, usize)> = self
+            .bad
+            .positions()
+            .into_iter()
+            .filter(|&(r, c)| {
+                let (r0, r1) = (r.saturating_sub(1), (r + 1).min(rows - 1));
+                let (c0, c1) = (c.saturating_sub(1), (c + 1).min(cols - 1));
+                !(r0..=r1)
+                    .any(|i| (c0..=c1).any(|j| !mask[[i, j]] && corrected[[i, j]].is_finite()))
+            })
+            .collect();
+        let any_valid = corrected
+            .indexed_iter()
+            .any(|(p, v)| v.is_finite() && !mask[p]);
+        // With no valid pixel anywhere every flagged pixel is isolated (set NaN below).
+        let mut out = if any_valid {
+            bad_pixels::replace(corrected.view(), &self.bad)?
+        } else {
+            corrected
+        };
+        for (r, c) in isolated {
+            out[[r, c]] = f64::NAN;
+        }
+        Ok(out)
+    }
+
+    /// As [`Calibration::correct`] for a frame already in f64 (e.g. an average of frames).
+    ///
+    /// Errors: as [`Calibration::correct`].
+    pub fn correct_f64(&self, dn: ArrayView2<f64>) -> Result<Array2<f64>> {
+        let max = self.chain.model.max_dn();
+        let mut out = self.nuc.apply(dn)?;
+        Zip::from(&mut out).and(&dn).for_each(|o, &r| {
+            if !(r > 0.0 && r < max) {
+                *o = f64::NAN;
+            }
+        });
+        self.replace_bad(out)
+    }
+
+    /// Corrected DN → `(apparent temperature K, in-band radiance W m-2 sr-1, NaN count)`:
+    /// T by inverting the DN* table (DESIGN.md §4.9), the radiance as `L_band(T)` of the
+    /// blackbody at that temperature. Values outside the table (or NaN) give NaN in both
+    /// images and are counted.
+    pub fn to_temperature(&self, corrected: ArrayView2<f64>) -> (Array2<f64>, Array2<f64>, usize) {
+        let t = Zip::from(&corrected).par_map_collect(|&v| self.dn_lut.temperature_or_nan(v));
+        let l = Zip::from(&t).par_map_collect(|&tk| {
+            if tk.is_nan() {
+                f64::NAN
+            } else {
+                self.radiance_lut.response(tk)
+            }
+        });
+        let nan = t.iter().filter(|v| v.is_nan()).count();
+        (t, l, nan)
+    }
+
+    /// Residual non-uniformity σ/mean of a flat field at `t_k` (a temperature not used in
+    /// the fit), `(raw, corrected)`: the average of M (= `frames_per_level`) frames of
+    /// `instance` (frame indices from [`VALIDATION_FRAME_BASE`]), raw and through
+    /// [`Calibration::correct_f64`]. Both are taken over the pixels not flagged bad, so the
+    /// figure measures the fixed-pattern correction, not defect replacement; the
+    /// corrected value keeps the temporal noise of the average (σ_t/√M).
+    ///
+    /// Errors: an invalid temperature, an instance of another shape, or fewer than two
+    /// valid pixels.
+    pub fn residual_nonuniformity(
+        &self,
+        instance: &DetectorInstance,
+        t_k: f64,
+    ) -> Result<(f64, f64)> {
+        require_positive("t_k", t_k)?;
+        let mean_e = flat_field_e(&self.chain, self.cos4.as_ref(), t_k)?;
+        let (avg, _) = average_frames(
+            instance,
+            &mean_e,
+            VALIDATION_FRAME_BASE,
+            self.frames_per_level,
+        )?;
+        let raw = nuc::residual_nonuniformity(avg.view(), Some(&self.bad))?;
+        let corrected = self.correct_f64(avg.view())?;
+        let cor = nuc::residual_nonuniformity(corrected.view(), Some(&self.bad))?;
+        Ok((raw, cor))
+    }
+
+    /// Analytic NETD (K) at `t_ref_k`: temporal noise / dDN*/dT ([`netd::analytic_netd`]),
+    /// the noise `√(σ_t² + 1/12)` DN with σ_t = `model.temporal_noise_dn(μ_e(T))` (shot
+    /// and read noise, FOI report eq. 2.34) and the ADC's rounding noise 1/√12 DN.
+    ///
+    /// Errors: an invalid temperature, or a flat response (saturated at `t_ref_k`).
+    pub fn netd_analytic_k(&self, t_ref_k: f64) -> Result<f64> {
+        require_positive("t_ref_k", t_ref_k)?;
+        let m = &self.chain.model;
+        let sigma = m.temporal_noise_dn(self.blackbody_electrons(t_ref_k)?);
+        let noise = (sigma * sigma + m.quantisation_noise_dn().powi(2)).sqrt();
+        let c = &self.chain;
+        netd::analytic_netd(|t| c.ideal_dn(t), t_ref_k, noise)
+    }
+}
+
+/// Measured NETD (K) of `instance` from simulated frames (DESIGN.md §4.10 style
+/// measurement, [`netd::measured_netd`]): `frames` frames of a uniform blackbody at `t_k`
+/// (frame indices from [`NETD_FRAME_BASE`]) and `frames` at `t_k + delta_t_k`; the
+/// temporal noise is the root of the pixel-averaged temporal variance at `t_k` and the
+/// responsivity the mean DN difference / ΔT, over the pixels not in `exclude`. Raw DN are
+/// used (NETD is a property of the sensor, not of the correction). The finite difference
+/// is one-sided: its relative bias is about `ΔT · S''/(2 S')`, so keep ΔT small (a fraction
+/// of a kelvin) when comparing with the analytic value. `optics.cos4` is applied as in the
+/// scene.
+///
+/// Errors: invalid temperatures, fewer than 2 frames, or the errors of the measurement.
+pub fn measured_netd(
+    sensor: &SensorConfig,
+    instance: &DetectorInstance,
+    t_k: f64,
+    delta_t_k: f64,
+    frames: usize,
+    exclude: Option<&BadPixelMap>,
+) -> Result<f64> {
+    require_positive("t_k", t_k)?;
+    require_positive("delta_t_k", delta_t_k)?;
+    if frames < 2 {
+        return Err(Error::param(
+            "frames",
+            frames,
+            "at least 2 frames per temperature",
+        ));
+    }
+    let model = instance.model();
+    let (rows, cols) = (model.rows(), model.cols());
+    let response = sensor.spectral_response()?;
+    let camera = sensor.camera_equation()?;
+    let cos4 = sensor.optics.cos4.then(|| cos4_map(sensor, rows, cols));
+    let field = |t: f64| -> Result<Array2<f64>> {
+        let e = camera.electrons_blackbody(t, &response)?;
+        Ok(match &cos4 {
+            Some(m) => m.mapv(|c| c * e),
+            None => Array2::from_elem((rows, cols), e),
+        })
+    };
+    let (e0, e1) = (field(t_k)?, field(t_k + delta_t_k)?);
+    let (s0, s1) = rayon::join(
+        || stack_frames(instance, &e0, NETD_FRAME_BASE, frames),
+        || stack_frames(instance, &e1, NETD_FRAME_BASE + 1_000_000, frames),
+    );
+    let m = netd::measured_netd(s0?.view(), s1?.view(), delta_t_k, exclude)?;
+    Ok(m.netd_k)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn peak_of_top_hat_is_its_peak() {
+        let s = Spectrum::top_hat(4.0, 5.0, 0.1, 0.85).unwrap_or_else(|_| Spectrum::constant(0.0));
+        assert!((peak_of(&s) - 0.85).abs() < 1e-12);
+    }
+
+    #[test]
+    fn default_options_validate() {
+        assert!(CalibrationOptions::default().validate().is_ok());
+        let bad = CalibrationOptions {
+            temperatures_k: vec![300.0, 300.0],
+            ..CalibrationOptions::default()
+        };
+        assert!(bad.validate().is_err());
+    }
+}
