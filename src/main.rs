@@ -27,6 +27,8 @@ enum Command {
     Demo(run::DemoArgs),
     /// Write a built-in synthetic scene as a radiance cube (any supported format).
     Scene(run::SceneArgs),
+    /// Convert a DN image (or in-band radiance) to apparent temperature through a sensor.
+    Temperature(run::TemperatureArgs),
     /// Print or plot the transfer functions (MTF) of a sensor along the x axis.
     Mtf(MtfArgs),
     /// List the built-in sensor presets, or print one fully resolved (`sensors show NAME`).
@@ -78,6 +80,7 @@ fn main() -> ExitCode {
         Command::Run(args) => run::run(args),
         Command::Demo(args) => run::demo(args),
         Command::Scene(args) => run::scene(args),
+        Command::Temperature(args) => run::temperature(args),
         Command::Mtf(args) => mtf(args),
         Command::Sensors(args) => sensors(args),
     };

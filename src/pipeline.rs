@@ -15,6 +15,7 @@ use std::time::Instant;
 use ndarray::Array2;
 use serde_json::json;
 
+use crate::calibration::{Calibration, CalibrationOptions};
 use crate::detector::{DetectorInstance, DetectorModel};
 use crate::error::{Error, Result};
 use crate::imaging::{Imager, ImagingStats, DEFAULT_WRAP_TOLERANCE};
@@ -37,6 +38,10 @@ pub struct RunOptions {
     /// formed once and exposed `frames` times (fixed pattern identical, temporal noise
     /// independent). Ignored for a multi-frame input.
     pub frames: usize,
+    /// Radiometric calibration for thermal sensors (response beyond 3 µm): NUC fitted on
+    /// blackbody frames through the same sensor instance, then DN → in-band radiance →
+    /// apparent temperature. `None` skips it.
+    pub calibration: Option<CalibrationOptions>,
 }
 
 impl Default for RunOptions {
@@ -47,6 +52,7 @@ impl Default for RunOptions {
             wrap_tolerance: DEFAULT_WRAP_TOLERANCE,
             input_name: String::from("memory"),
             frames: 1,
+            calibration: Some(CalibrationOptions::default()),
         }
     }
 }
@@ -62,6 +68,12 @@ pub struct FrameProducts {
     /// `[row, col, 3]`, stretched between the 0.5 and 99.5 percentiles with one common
     /// scale (so grey stays grey).
     pub rgb: Option<ndarray::Array3<u8>>,
+    /// Thermal sensors: in-band radiance (W m-2 sr-1, response-weighted, normalised to peak
+    /// response 1) after NUC and bad-pixel replacement; NaN where it cannot be inverted.
+    pub radiance: Option<Array2<f32>>,
+    /// Thermal sensors: apparent (blackbody-equivalent) temperature, K; NaN outside the
+    /// calibrated range.
+    pub temperature: Option<Array2<f32>>,
 }
 
 /// Everything a run produced.
@@ -77,6 +89,15 @@ pub struct RunOutput {
     pub warnings: Vec<String>,
 }
 
+/// Whether the sensor sees thermal emission (its response reaches beyond 3 µm), so that
+/// apparent temperature is a meaningful product.
+pub fn is_thermal(sensor: &SensorConfig) -> bool {
+    sensor
+        .spectral_response()
+        .map(|s| s.support_um().1 > 3.0)
+        .unwrap_or(false)
+}
+
 /// White-balance gains of the colour channels of a colour-filter-array sensor (all 1 for a
 /// single channel): each channel is scaled so that a spectrally grey surface lit by the sun
 /// (radiance shaped like a 5772 K blackbody) gives the same signal as in green.
@@ -89,9 +110,14 @@ fn white_balance(channels: &[SensorConfig]) -> Result<Vec<f64>> {
         let resp = s.spectral_response()?;
         let (lo, hi) = resp.support_um();
         let sun = |l: f64| crate::radiometry::planck_spectral_radiance(l, 5772.0);
-        e.push(s.camera_equation()?.electrons_spectral(&resp, sun, lo, hi.min(50.0))?);
+        e.push(
+            s.camera_equation()?
+                .electrons_spectral(&resp, sun, lo, hi.min(50.0))?,
+        );
     }
-    Ok(e.iter().map(|v| if *v > 0.0 { e[1] / v } else { 1.0 }).collect())
+    Ok(e.iter()
+        .map(|v| if *v > 0.0 { e[1] / v } else { 1.0 })
+        .collect())
 }
 
 /// Runs the chain on every frame of `reader`. Nothing is written: call
@@ -139,7 +165,10 @@ pub fn run(
     } else {
         input_frames
     };
-    let active: usize = imagers.iter().map(|i| i.weights().active_bands().len()).sum();
+    let active: usize = imagers
+        .iter()
+        .map(|i| i.weights().active_bands().len())
+        .sum();
     let mut frames = Vec::with_capacity(n_frames);
     let mut stats = ImagingStats::default();
     let mut mean: Option<Array2<f64>> = None;
@@ -161,9 +190,7 @@ pub fn run(
                 planes.push(e);
             }
             mean = Some(match &sensor.cfa {
-                Some(cfa) => {
-                    crate::cfa::mosaic([&planes[0], &planes[1], &planes[2]], cfa.pattern)?
-                }
+                Some(cfa) => crate::cfa::mosaic([&planes[0], &planes[1], &planes[2]], cfa.pattern)?,
                 None => planes.swap_remove(0),
             });
         }
@@ -178,7 +205,9 @@ pub fn run(
                 let raw = dn.mapv(|v| v as f64 - sensor.detector.offset_dn);
                 let mut planes = crate::cfa::demosaic_malvar(raw.view(), cfa.pattern);
                 for (c, g) in white_balance.iter().enumerate() {
-                    planes.index_axis_mut(ndarray::Axis(0), c).mapv_inplace(|v| v * g);
+                    planes
+                        .index_axis_mut(ndarray::Axis(0), c)
+                        .mapv_inplace(|v| v * g);
                 }
                 Some(crate::cfa::false_colour_common(
                     [
@@ -195,8 +224,44 @@ pub fn run(
             electrons_mean: e.mapv(|v| v as f32),
             dn,
             rgb,
+            radiance: None,
+            temperature: None,
         });
     }
+    // The way back: calibrate through the same sensor instance, then invert.
+    let t_cal = Instant::now();
+    let mut calibration_report = serde_json::Value::Null;
+    if let Some(opts) = options.calibration.as_ref().filter(|_| is_thermal(sensor)) {
+        match Calibration::new(sensor, &model, &instance, opts) {
+            Ok(cal) => {
+                let mut nan_total = 0;
+                for f in frames.iter_mut() {
+                    let corrected = cal.correct(f.dn.view())?;
+                    let (t, l, nan) = cal.to_temperature(corrected.view());
+                    nan_total += nan;
+                    f.temperature = Some(t.mapv(|v| v as f32));
+                    f.radiance = Some(l.mapv(|v| v as f32));
+                }
+                let temps = cal.temperatures_k();
+                let t_check = 0.5 * (temps[0] + temps[temps.len() - 1]) + 0.37;
+                let (raw_nu, nuc_nu) = cal.residual_nonuniformity(&instance, t_check)?;
+                calibration_report = json!({
+                    "nuc_degree": opts.degree,
+                    "temperatures_k": temps,
+                    "frames_per_level": opts.frames_per_level,
+                    "bad_pixels": cal.bad_pixels().count(),
+                    "residual_nonuniformity": {"at_k": t_check, "raw": raw_nu, "corrected": nuc_nu},
+                    "netd_analytic_k_at_300k": cal.netd_analytic_k(300.0).ok(),
+                    "uninvertible_pixels": nan_total,
+                    "radiance_definition": "in-band radiance: integral of S(λ) L(λ) dλ / max S, W m-2 sr-1",
+                });
+            }
+            Err(e) => warnings.push(format!(
+                "no radiance/temperature products: calibration failed: {e}"
+            )),
+        }
+    }
+    let calibration_s = t_cal.elapsed().as_secs_f64();
     let d = &sensor.detector;
     let first = &frames[0];
     let n_px = first.dn.len() as f64;
@@ -258,6 +323,7 @@ pub fn run(
             "temporal_noise_e": noise_e,
             "snr": if noise_e > 0.0 { mean_e / noise_e } else { f64::INFINITY },
         },
+        "calibration": calibration_report,
         "warnings": warnings,
         "timings_s": {
             "read": stats.read_s,
@@ -265,6 +331,7 @@ pub fn run(
             "otf_and_accumulate": stats.otf_s,
             "inverse_and_sampling": stats.inverse_s,
             "detector": detector_s,
+            "calibration": calibration_s,
             "total": t_start.elapsed().as_secs_f64(),
         },
     });
@@ -304,6 +371,13 @@ impl RunOutput {
             let p = dir.join(format!("{prefix}electrons_mean.exr"));
             raster::write_exr_f32(&p, f.electrons_mean.view(), "electrons_mean")?;
             written.push(p);
+            for (name, img) in [("radiance", &f.radiance), ("temperature", &f.temperature)] {
+                if let Some(img) = img {
+                    let p = dir.join(format!("{prefix}{name}.tiff"));
+                    raster::write_tiff_f32(&p, img.view())?;
+                    written.push(p);
+                }
+            }
             if let Some(rgb) = &f.rgb {
                 let p = dir.join(format!("{prefix}rgb.png"));
                 raster::write_png_rgb8(&p, rgb.view())?;

@@ -6,6 +6,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use eoir::calibration::{Calibration, CalibrationOptions};
+use eoir::detector::{DetectorInstance, DetectorModel};
 use eoir::pipeline::{self, RunOptions};
 use eoir::scene::synthetic::{self, SceneParams};
 use eoir::scene::Geometry;
@@ -34,6 +36,9 @@ pub struct RunArgs {
     /// Frames to expose of a static scene (fixed pattern identical, temporal noise fresh).
     #[arg(long, default_value_t = 1)]
     frames: usize,
+    /// Degree of the per-pixel NUC polynomial for thermal sensors (1 = two-point).
+    #[arg(long, default_value_t = 1)]
+    nuc_degree: usize,
     /// Scene field of view `H,V` in degrees, if the input file does not give one.
     #[arg(long, value_name = "H,V")]
     fov_deg: Option<String>,
@@ -145,6 +150,7 @@ fn run_file(
     seed: u64,
     geometry: Option<Geometry>,
     frames: usize,
+    nuc_degree: usize,
     quiet: bool,
 ) -> Result<()> {
     let mut reader = eoir::io::open(input)?;
@@ -154,6 +160,7 @@ fn run_file(
         geometry,
         input_name: input.display().to_string(),
         frames,
+        calibration: Some(calibration_options(nuc_degree)),
         ..Default::default()
     };
     let out = pipeline::run(sensor, reader.as_mut(), &options, |done, total| {
@@ -191,6 +198,95 @@ fn run_file(
     Ok(())
 }
 
+/// Calibration levels for a NUC of `degree`: at least degree + 2 blackbody temperatures
+/// spread over 280–320 K.
+fn calibration_options(degree: usize) -> CalibrationOptions {
+    let levels = (degree + 2).max(3);
+    CalibrationOptions {
+        temperatures_k: (0..levels)
+            .map(|i| 280.0 + 40.0 * i as f64 / (levels - 1) as f64)
+            .collect(),
+        degree,
+        ..Default::default()
+    }
+}
+
+/// Arguments of `eoir temperature`.
+#[derive(Debug, clap::Args)]
+pub struct TemperatureArgs {
+    /// Sensor: a TOML file or a preset name (the one that recorded the image).
+    #[arg(long)]
+    sensor: String,
+    /// Select a preset option (repeatable).
+    #[arg(long = "option", value_name = "NAME=VALUE")]
+    option: Vec<String>,
+    /// Override a sensor field (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+    /// Seed of the sensor instance that recorded the DN image (its fixed pattern).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Degree of the NUC polynomial.
+    #[arg(long, default_value_t = 1)]
+    nuc_degree: usize,
+    /// Input: a 16-bit DN TIFF (as `eoir run` writes) or an f32 TIFF of in-band radiance.
+    input: PathBuf,
+    /// Output directory (writes temperature.tiff, and radiance.tiff for DN input).
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+/// `eoir temperature`: DN (through NUC, bad-pixel replacement and the sensor's response) or
+/// in-band radiance → apparent temperature.
+pub fn temperature(args: TemperatureArgs) -> Result<()> {
+    let sensor = presets::load(&args.sensor, &args.option, &args.set)?;
+    if !eoir::pipeline::is_thermal(&sensor) {
+        bail!(
+            "sensor `{}` does not respond beyond 3 µm: apparent temperature needs a thermal sensor",
+            sensor.name
+        );
+    }
+    let model = DetectorModel::from_config(&sensor)?;
+    let instance = DetectorInstance::new(&model, args.seed)?;
+    let cal = Calibration::new(
+        &sensor,
+        &model,
+        &instance,
+        &calibration_options(args.nuc_degree),
+    )?;
+    let (temperature, radiance, nan) = match eoir::io::raster::read_tiff_u16(&args.input) {
+        Ok(dn) => {
+            let corrected = cal.correct(dn.view())?;
+            let (t, l, nan) = cal.to_temperature(corrected.view());
+            (t, Some(l), nan)
+        }
+        Err(_) => {
+            let l = eoir::io::raster::read_tiff_f32(&args.input)
+                .with_context(|| "input is neither a 16-bit DN TIFF nor an f32 radiance TIFF")?;
+            let lut = cal.radiance_lut();
+            let t = l.mapv(|v| lut.temperature_or_nan(v as f64));
+            let nan = t.iter().filter(|v| v.is_nan()).count();
+            (t, None, nan)
+        }
+    };
+    std::fs::create_dir_all(&args.output)
+        .with_context(|| format!("creating {}", args.output.display()))?;
+    let p = args.output.join("temperature.tiff");
+    eoir::io::raster::write_tiff_f32(&p, temperature.mapv(|v| v as f32).view())?;
+    println!("wrote {}", p.display());
+    if let Some(l) = radiance {
+        let p = args.output.join("radiance.tiff");
+        eoir::io::raster::write_tiff_f32(&p, l.mapv(|v| v as f32).view())?;
+        println!("wrote {}", p.display());
+    }
+    let (lo, hi) = cal.lut_range_k();
+    println!(
+        "{nan} pixels outside the calibrated range {lo:.1}–{hi:.1} K (NaN); NETD at 300 K {:.1} mK",
+        cal.netd_analytic_k(300.0).unwrap_or(f64::NAN) * 1e3
+    );
+    Ok(())
+}
+
 /// `eoir run`.
 pub fn run(args: RunArgs) -> Result<()> {
     let sensor = presets::load(&args.sensor, &args.option, &args.set)?;
@@ -212,6 +308,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         args.seed,
         geometry,
         args.frames,
+        args.nuc_degree,
         args.quiet,
     )
 }
@@ -266,6 +363,7 @@ pub fn demo(args: DemoArgs) -> Result<()> {
         &args.output,
         args.seed,
         None,
+        1,
         1,
         args.quiet,
     )
