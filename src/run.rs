@@ -142,27 +142,17 @@ fn progress_bar(quiet: bool, what: &str) -> Option<ProgressBar> {
     Some(pb)
 }
 
-/// Loads the sensor and runs the input through it, writing the products.
+/// Runs the input through the sensor, writing the products.
 fn run_file(
     sensor: &SensorConfig,
     input: &Path,
     output: &Path,
-    seed: u64,
-    geometry: Option<Geometry>,
-    frames: usize,
-    nuc_degree: usize,
+    mut options: RunOptions,
     quiet: bool,
 ) -> Result<()> {
     let mut reader = eoir::io::open(input)?;
     let pb = progress_bar(quiet, "imaging");
-    let options = RunOptions {
-        seed,
-        geometry,
-        input_name: input.display().to_string(),
-        frames,
-        calibration: Some(calibration_options(nuc_degree)),
-        ..Default::default()
-    };
+    options.input_name = input.display().to_string();
     let out = pipeline::run(sensor, reader.as_mut(), &options, |done, total| {
         if let Some(pb) = &pb {
             pb.set_length(total as u64);
@@ -305,10 +295,13 @@ pub fn run(args: RunArgs) -> Result<()> {
         &sensor,
         &args.input,
         &args.output,
-        args.seed,
-        geometry,
-        args.frames,
-        args.nuc_degree,
+        RunOptions {
+            seed: args.seed,
+            geometry,
+            frames: args.frames,
+            calibration: Some(calibration_options(args.nuc_degree)),
+            ..Default::default()
+        },
         args.quiet,
     )
 }
@@ -361,10 +354,10 @@ pub fn demo(args: DemoArgs) -> Result<()> {
         &sensor,
         &scene_path,
         &args.output,
-        args.seed,
-        None,
-        1,
-        1,
+        RunOptions {
+            seed: args.seed,
+            ..Default::default()
+        },
         args.quiet,
     )
 }
