@@ -64,9 +64,9 @@ pub struct FrameProducts {
     pub electrons_mean: Array2<f32>,
     /// Digital numbers (for a colour-filter-array sensor: the raw mosaic).
     pub dn: Array2<u16>,
-    /// For a colour-filter-array sensor: the demosaicked (Malvar–He–Cutler) colour image,
-    /// `[row, col, 3]`, stretched between the 0.5 and 99.5 percentiles with one common
-    /// scale (so grey stays grey).
+    /// For a colour-filter-array sensor: the demosaicked (Malvar–He–Cutler), black-level
+    /// subtracted, sunlight white-balanced colour image, `[row, col, 3]`, with the 99.5th
+    /// percentile at 255 (one scale, so grey stays grey).
     pub rgb: Option<ndarray::Array3<u8>>,
     /// Thermal sensors: in-band radiance (W m-2 sr-1, response-weighted, normalised to peak
     /// response 1) after NUC and bad-pixel replacement; NaN where it cannot be inverted.
@@ -89,6 +89,28 @@ pub struct RunOutput {
     pub warnings: Vec<String>,
 }
 
+/// A false-colour composite of runs of the channels of one camera (3-CCD, three-band): the
+/// channels are ordered by their response-weighted mean wavelength and the longest goes to
+/// red, the middle to green, the shortest to blue (so near-IR-bright vegetation is red, as
+/// in a colour-infrared photograph). Each channel's DN image is stretched between
+/// its own 0.5 and 99.5 percentiles. Returns `[row, col, 3]` bytes.
+pub fn false_colour_composite(channels: &[(f64, &RunOutput)]) -> Result<ndarray::Array3<u8>> {
+    if channels.len() != 3 {
+        return Err(Error::param(
+            "composite channels",
+            channels.len(),
+            "exactly 3 channel runs",
+        ));
+    }
+    let mut order: Vec<&(f64, &RunOutput)> = channels.iter().collect();
+    order.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let planes: Vec<Array2<f64>> = order
+        .iter()
+        .map(|(_, out)| out.frames[0].dn.mapv(|v| v as f64))
+        .collect();
+    crate::cfa::false_colour([planes[0].view(), planes[1].view(), planes[2].view()], 0.5)
+}
+
 /// Whether the sensor sees thermal emission (its response reaches beyond 3 µm), so that
 /// apparent temperature is a meaningful product.
 pub fn is_thermal(sensor: &SensorConfig) -> bool {
@@ -96,6 +118,25 @@ pub fn is_thermal(sensor: &SensorConfig) -> bool {
         .spectral_response()
         .map(|s| s.support_um().1 > 3.0)
         .unwrap_or(false)
+}
+
+/// A `[3, rows, cols]` linear colour image as display bytes `[rows, cols, 3]`: zero stays
+/// black and the 99.5th percentile of all channels maps to 255 (one scale for all three, so
+/// channel ratios — grey — are kept).
+fn display_rgb(planes: &ndarray::Array3<f64>) -> ndarray::Array3<u8> {
+    let mut all: Vec<f64> = planes.iter().copied().filter(|v| v.is_finite()).collect();
+    all.sort_by(f64::total_cmp);
+    let white = all
+        .get(((all.len().max(1) - 1) as f64 * 0.995) as usize)
+        .copied()
+        .filter(|w| *w > 0.0)
+        .unwrap_or(1.0);
+    let (_, rows, cols) = planes.dim();
+    ndarray::Array3::from_shape_fn((rows, cols, 3), |(r, c, k)| {
+        (planes[[k, r, c]] / white * 255.0)
+            .round()
+            .clamp(0.0, 255.0) as u8
+    })
 }
 
 /// White-balance gains of the colour channels of a colour-filter-array sensor (all 1 for a
@@ -202,21 +243,17 @@ pub fn run(
         detector_s += t0.elapsed().as_secs_f64();
         let rgb = match &sensor.cfa {
             Some(cfa) => {
-                let raw = dn.mapv(|v| v as f64 - sensor.detector.offset_dn);
+                // Black level: offset plus the mean dark and background signal.
+                let black = sensor.detector.offset_dn
+                    + model.gain_dn_per_e() * (model.dark_e() + model.background_e());
+                let raw = dn.mapv(|v| v as f64 - black);
                 let mut planes = crate::cfa::demosaic_malvar(raw.view(), cfa.pattern);
                 for (c, g) in white_balance.iter().enumerate() {
                     planes
                         .index_axis_mut(ndarray::Axis(0), c)
                         .mapv_inplace(|v| v * g);
                 }
-                Some(crate::cfa::false_colour_common(
-                    [
-                        planes.index_axis(ndarray::Axis(0), 0),
-                        planes.index_axis(ndarray::Axis(0), 1),
-                        planes.index_axis(ndarray::Axis(0), 2),
-                    ],
-                    0.5,
-                )?)
+                Some(display_rgb(&planes))
             }
             None => None,
         };
@@ -275,7 +312,21 @@ pub fn run(
     let noise_e = model.temporal_noise_e(mean_e);
     let mean_dn = first.dn.iter().map(|v| *v as f64).sum::<f64>() / n_px;
     let s = imager.sampling();
+    let lambda_mean = crate::report::mean_wavelength_um(sensor).ok();
+    let mtf_nyquist =
+        lambda_mean.map(|l| imager.otf().evaluate(sensor.nyquist_cy_per_rad(), 0.0, l));
     let report = json!({
+        "options": sensor.selected_options,
+        "optics": {
+            "focal_length_m": sensor.optics.focal_length_m,
+            "f_number": sensor.optics.f_number,
+            "ifov_urad": sensor.ifov_rad() * 1e6,
+            "fov_deg": [sensor.fov_deg().0, sensor.fov_deg().1],
+            "mean_wavelength_um": lambda_mean,
+            "lambda_f_number_over_pitch": lambda_mean.map(|l| l * 1e-6 * sensor.optics.f_number / sensor.detector.pitch_m),
+            "mtf_at_nyquist": mtf_nyquist,
+            "components": imager.otf().components().iter().map(|c| c.name()).collect::<Vec<_>>(),
+        },
         "eoir_version": env!("CARGO_PKG_VERSION"),
         "sensor": sensor.name,
         "seed": options.seed,
@@ -344,6 +395,26 @@ pub fn run(
 }
 
 impl RunOutput {
+    /// The DN frames as 8-bit images with one common stretch (0.5–99.5 percentiles over
+    /// all frames), for the animated preview of a sequence.
+    pub fn preview_frames(&self) -> Vec<Array2<u8>> {
+        let mut all: Vec<u16> = self
+            .frames
+            .iter()
+            .flat_map(|f| f.dn.iter().copied())
+            .collect();
+        all.sort_unstable();
+        let pick = |q: f64| all[((all.len() - 1) as f64 * q) as usize] as f64;
+        let (lo, hi) = (pick(0.005), pick(0.995));
+        let span = (hi - lo).max(1.0);
+        self.frames
+            .iter()
+            .map(|f| {
+                f.dn.mapv(|v| ((v as f64 - lo) / span * 255.0).round().clamp(0.0, 255.0) as u8)
+            })
+            .collect()
+    }
+
     /// Writes the products into `dir` (created if needed), each file atomically:
     /// `dn.tiff` (u16), `dn.png` (16-bit grey), `electrons_mean.tiff` and
     /// `electrons_mean.exr` (f32), `config.toml` (the resolved sensor), `report.json`, and
@@ -423,6 +494,11 @@ impl RunOutput {
                     ("report", report),
                 ],
             )?;
+            written.push(p);
+        }
+        if self.frames.len() > 1 {
+            let p = dir.join("preview.png");
+            crate::io::raster::write_apng_gray8(&p, &self.preview_frames(), 100)?;
             written.push(p);
         }
         let p = dir.join("config.toml");

@@ -39,6 +39,10 @@ pub struct RunArgs {
     /// Degree of the per-pixel NUC polynomial for thermal sensors (1 = two-point).
     #[arg(long, default_value_t = 1)]
     nuc_degree: usize,
+    /// For a preset with a `channel` option (3-CCD, three-band): run every channel into
+    /// OUTDIR/channel-<value>/ and write a false-colour composite OUTDIR/composite.png.
+    #[arg(long)]
+    composite: bool,
     /// Scene field of view `H,V` in degrees, if the input file does not give one.
     #[arg(long, value_name = "H,V")]
     fov_deg: Option<String>,
@@ -149,7 +153,7 @@ fn run_file(
     output: &Path,
     mut options: RunOptions,
     quiet: bool,
-) -> Result<()> {
+) -> Result<pipeline::RunOutput> {
     let mut reader = eoir::io::open(input)?;
     let pb = progress_bar(quiet, "imaging");
     options.input_name = input.display().to_string();
@@ -168,24 +172,47 @@ fn run_file(
     let written = out.write(output)?;
     if !quiet {
         let r = &out.report;
+        let f = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
+        let opts = r["options"]
+            .as_object()
+            .map(|o| {
+                o.iter()
+                    .map(|(k, v)| format!("{k}={}", v.as_str().unwrap_or("")))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            })
+            .unwrap_or_default();
         println!(
-            "{}: {} x {} px, sampling {:.3} scene px/detector px ({}), K = {:.4} DN/e-, mean {:.4e} e- ({:.1} DN), saturated {:.2} %, {:.2} s",
+            "{} {opts} (seed {}): {} x {} px, F/{:.2}, IFOV {:.1} µrad, λF#/pitch {:.2}, MTF at Nyquist {:.3}",
             sensor.name,
+            r["seed"],
             sensor.detector.cols,
             sensor.detector.rows,
-            r["sampling"]["ratio_x"].as_f64().unwrap_or(f64::NAN),
+            f(&r["optics"]["f_number"]),
+            f(&r["optics"]["ifov_urad"]),
+            f(&r["optics"]["lambda_f_number_over_pitch"]),
+            f(&r["optics"]["mtf_at_nyquist"]),
+        );
+        println!(
+            "  sampling {:.3} scene px per detector px ({}); K = {:.4} DN/e-; signal {:.4e} e-, noise {:.4e} e-, SNR {:.1}; saturated {:.2} %{}; {:.2} s",
+            f(&r["sampling"]["ratio_x"]),
             r["sampling"]["method"].as_str().unwrap_or(""),
-            r["detector"]["gain_dn_per_e"].as_f64().unwrap_or(f64::NAN),
-            r["signal"]["mean_electrons"].as_f64().unwrap_or(f64::NAN),
-            r["signal"]["mean_dn"].as_f64().unwrap_or(f64::NAN),
-            r["signal"]["saturated_percent"].as_f64().unwrap_or(f64::NAN),
-            r["timings_s"]["total"].as_f64().unwrap_or(f64::NAN),
+            f(&r["detector"]["gain_dn_per_e"]),
+            f(&r["signal"]["mean_electrons"]),
+            f(&r["signal"]["temporal_noise_e"]),
+            f(&r["signal"]["snr"]),
+            f(&r["signal"]["saturated_percent"]),
+            match r["calibration"]["netd_analytic_k_at_300k"].as_f64() {
+                Some(n) => format!("; NETD {:.1} mK at 300 K", n * 1e3),
+                None => String::new(),
+            },
+            f(&r["timings_s"]["total"]),
         );
         for p in written {
             println!("wrote {}", p.display());
         }
     }
-    Ok(())
+    Ok(out)
 }
 
 /// Calibration levels for a NUC of `degree`: at least degree + 2 blackbody temperatures
@@ -279,7 +306,6 @@ pub fn temperature(args: TemperatureArgs) -> Result<()> {
 
 /// `eoir run`.
 pub fn run(args: RunArgs) -> Result<()> {
-    let sensor = presets::load(&args.sensor, &args.option, &args.set)?;
     let geometry = match &args.fov_deg {
         Some(t) => {
             let (h, v) = super::parse_pair(t, "--fov-deg")?;
@@ -291,19 +317,66 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
         None => None,
     };
-    run_file(
-        &sensor,
-        &args.input,
-        &args.output,
-        RunOptions {
-            seed: args.seed,
-            geometry,
-            frames: args.frames,
-            calibration: Some(calibration_options(args.nuc_degree)),
-            ..Default::default()
-        },
-        args.quiet,
-    )
+    let options = RunOptions {
+        seed: args.seed,
+        geometry,
+        frames: args.frames,
+        calibration: Some(calibration_options(args.nuc_degree)),
+        ..Default::default()
+    };
+    if !args.composite {
+        let sensor = presets::load(&args.sensor, &args.option, &args.set)?;
+        run_file(&sensor, &args.input, &args.output, options, args.quiet)?;
+        return Ok(());
+    }
+    let info = presets::list()
+        .into_iter()
+        .find(|p| p.name.eq_ignore_ascii_case(&args.sensor))
+        .with_context(|| {
+            format!(
+                "--composite needs a preset with a `channel` option, not `{}`",
+                args.sensor
+            )
+        })?;
+    let channels = info
+        .channel_values()
+        .with_context(|| {
+            format!(
+                "preset `{}` has no `channel` option to composite",
+                info.name
+            )
+        })?
+        .to_vec();
+    if channels.len() != 3 {
+        bail!(
+            "preset `{}` has {} channels; a composite needs 3",
+            info.name,
+            channels.len()
+        );
+    }
+    let mut outs = Vec::new();
+    for ch in &channels {
+        let mut opts = args.option.clone();
+        opts.retain(|o| !o.starts_with("channel="));
+        opts.push(format!("channel={ch}"));
+        let sensor = presets::load(&args.sensor, &opts, &args.set)?;
+        let out = run_file(
+            &sensor,
+            &args.input,
+            &args.output.join(format!("channel-{ch}")),
+            options.clone(),
+            args.quiet,
+        )?;
+        outs.push((eoir::report::mean_wavelength_um(&sensor)?, out));
+    }
+    let refs: Vec<(f64, &pipeline::RunOutput)> = outs.iter().map(|(l, o)| (*l, o)).collect();
+    let rgb = pipeline::false_colour_composite(&refs)?;
+    let p = args.output.join("composite.png");
+    eoir::io::raster::write_png_rgb8(&p, rgb.view())?;
+    if !args.quiet {
+        println!("wrote {} (longest-wavelength channel → red)", p.display());
+    }
+    Ok(())
 }
 
 /// `eoir demo`: the thermal scene, sized to cover the sensor at `oversampling` scene samples
@@ -359,7 +432,8 @@ pub fn demo(args: DemoArgs) -> Result<()> {
             ..Default::default()
         },
         args.quiet,
-    )
+    )?;
+    Ok(())
 }
 
 /// `eoir scene`.

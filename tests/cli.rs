@@ -406,6 +406,16 @@ fn sequence_input_writes_numbered_frames() {
         dn.push(eoir::io::raster::read_tiff_u16(&p).unwrap());
     }
     assert_ne!(dn[0], dn[1]);
+    // An animated preview of the sequence (APNG: an `acTL` chunk announcing 3 frames).
+    let preview = std::fs::read(out.join("preview.png")).unwrap();
+    let at = preview
+        .windows(4)
+        .position(|w| w == b"acTL")
+        .expect("APNG acTL chunk");
+    assert_eq!(
+        u32::from_be_bytes(preview[at + 4..at + 8].try_into().unwrap()),
+        3
+    );
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(report["input"]["frames"], 3);
@@ -528,4 +538,71 @@ fn uniform_300k_scene_round_trips_to_temperature() {
     for (x, y) in t.iter().zip(t2.iter()) {
         assert!((x.is_nan() && y.is_nan()) || x == y);
     }
+}
+
+/// `eoir run --composite` on a three-band preset writes each channel and the composite.
+#[test]
+fn composite_run_writes_channels_and_png() {
+    let dir = tempdir();
+    let scene = dir.path().join("vis.npy");
+    let ifov: f64 = 5.5e-6 / 0.028;
+    let res = eoir()
+        .args([
+            "scene",
+            "thermal",
+            "--rows",
+            "26",
+            "--cols",
+            "35",
+            "--oversampling",
+            "2",
+        ])
+        .args([
+            "--lo-um",
+            "0.38",
+            "--hi-um",
+            "0.98",
+            "--bands",
+            "31",
+            "--fov-deg",
+        ])
+        .arg((35.0 * ifov).to_degrees().to_string())
+        .arg("-o")
+        .arg(&scene)
+        .output()
+        .unwrap();
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let out = dir.path().join("out");
+    let res = eoir()
+        .args(["run", "--sensor", "threeband", "--composite", "--quiet"])
+        .args(["--set", "detector.rows=26", "--set", "detector.cols=35"])
+        .arg(&scene)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    for ch in ["1", "2", "3"] {
+        assert!(out.join(format!("channel-{ch}/dn.tiff")).exists());
+    }
+    let png = std::fs::read(out.join("composite.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    // A sensor without channels is refused with a clear message.
+    let res = eoir()
+        .args(["run", "--sensor", "qwip", "--composite"])
+        .arg(&scene)
+        .arg("-o")
+        .arg(dir.path().join("x"))
+        .output()
+        .unwrap();
+    assert_eq!(res.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&res.stderr).contains("channel"));
 }

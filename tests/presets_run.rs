@@ -75,3 +75,103 @@ fn multimir_300k_blackbody_lands_at_half_range() {
         "median DN {median} vs {half}"
     );
 }
+
+/// The three-band composite puts near-IR-bright vegetation in red: over pixels that are
+/// mostly vegetation, red is the strongest channel; over vegetation-free terrain it is not
+/// more dominant than there.
+#[test]
+fn threeband_composite_puts_vegetation_in_red() {
+    let small = [
+        "detector.rows=48".to_string(),
+        "detector.cols=64".to_string(),
+    ];
+    let base = presets::load("threeband", &["channel=1".into()], &small).unwrap();
+    let (rows, cols, k) = (48usize, 64usize, 2usize);
+    let params = SceneParams {
+        rows,
+        cols,
+        oversampling: k,
+        wavelength_um: SceneParams::uniform_grid(0.38, 0.98, 61).unwrap(),
+        fov_x_deg: (base.ifov_rad() * cols as f64).to_degrees(),
+        range_m: Some(1000.0),
+        seed: 3,
+        sun: true,
+    };
+    let scene = synthetic::thermal_scene(&params, &synthetic::Environment::default()).unwrap();
+    let mut outs = Vec::new();
+    for ch in ["1", "2", "3"] {
+        let s = presets::load("threeband", &[format!("channel={ch}")], &small).unwrap();
+        let mut reader = MemoryCube::new(scene.cube.clone());
+        let out = pipeline::run(&s, &mut reader, &RunOptions::default(), |_, _| {}).unwrap();
+        outs.push((eoir::report::mean_wavelength_um(&s).unwrap(), out));
+    }
+    let refs: Vec<(f64, &pipeline::RunOutput)> = outs.iter().map(|(l, o)| (*l, o)).collect();
+    let rgb = pipeline::false_colour_composite(&refs).unwrap();
+    // Vegetation fraction of each detector pixel: mean over its k × k scene block.
+    let veg = |r: usize, c: usize| {
+        let mut sum = 0.0;
+        for i in 0..k {
+            for j in 0..k {
+                sum += scene.vegetation_fraction[[r * k + i, c * k + j]] as f64;
+            }
+        }
+        sum / (k * k) as f64
+    };
+    let (mut n, mut red_lead) = (0usize, 0.0f64);
+    for r in 2..rows - 2 {
+        for c in 2..cols - 2 {
+            if veg(r, c) > 0.9 {
+                let p = rgb.slice(ndarray::s![r, c, ..]);
+                red_lead += p[0] as f64 - (p[1] as f64).max(p[2] as f64);
+                n += 1;
+            }
+        }
+    }
+    assert!(n > 20, "only {n} vegetation pixels");
+    assert!(
+        red_lead / n as f64 > 20.0,
+        "red leads by {} on vegetation",
+        red_lead / n as f64
+    );
+}
+
+/// Bayer camera through the whole chain: a grey surface in sunlight (radiance shaped like
+/// the 5772 K solar spectrum) comes out grey in `rgb`, channel means within 1 %.
+#[test]
+fn bayer_grey_scene_comes_out_grey() {
+    let small = [
+        "detector.rows=48".to_string(),
+        "detector.cols=64".to_string(),
+    ];
+    let s = presets::load("ccd-bayer", &[], &small).unwrap();
+    let params = SceneParams {
+        rows: 48,
+        cols: 64,
+        oversampling: 2,
+        wavelength_um: SceneParams::uniform_grid(0.35, 1.15, 81).unwrap(),
+        fov_x_deg: (s.ifov_rad() * 64.0).to_degrees(),
+        range_m: None,
+        seed: 1,
+        sun: false,
+    };
+    let mut cube = synthetic::blackbody(&params, 5772.0, 1.0).unwrap();
+    // A 20 % grey Lambertian surface under the sun: ρ E_sun/π with E_sun = B·Ω_sun.
+    cube.data
+        .mapv_inplace(|v| v * (0.2 * 6.794e-5 / std::f32::consts::PI));
+    let mut reader = MemoryCube::new(cube);
+    let out = pipeline::run(&s, &mut reader, &RunOptions::default(), |_, _| {}).unwrap();
+    let rgb = out.frames[0]
+        .rgb
+        .as_ref()
+        .expect("a Bayer sensor writes rgb");
+    let mean = |c: usize| {
+        let v = rgb.slice(ndarray::s![4..44, 4..60, c]);
+        v.iter().map(|x| *x as f64).sum::<f64>() / v.len() as f64
+    };
+    let (r, g, b) = (mean(0), mean(1), mean(2));
+    assert!(g > 20.0, "too dark: {g}");
+    assert!(
+        (r / g - 1.0).abs() < 0.01 && (b / g - 1.0).abs() < 0.01,
+        "r {r} g {g} b {b}"
+    );
+}
