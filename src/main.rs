@@ -48,15 +48,8 @@ struct SensorsArgs {
 
 #[derive(Debug, clap::Args)]
 struct MtfArgs {
-    /// Sensor: a TOML file or a preset name.
-    #[arg(long)]
-    sensor: String,
-    /// Select a preset option, e.g. `--option filter=4 --option optics=100mm` (repeatable).
-    #[arg(long = "option", value_name = "NAME=VALUE")]
-    option: Vec<String>,
-    /// Override a sensor field, e.g. `--set optics.f_number=2.5` (repeatable).
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    set: Vec<String>,
+    #[command(flatten)]
+    sensor: run::SensorArgs,
     /// Wavelength, µm (default: the response-weighted mean wavelength of the sensor).
     #[arg(long)]
     wavelength_um: Option<f64>,
@@ -147,7 +140,7 @@ fn sensors(args: SensorsArgs) -> Result<()> {
 }
 
 fn mtf(args: MtfArgs) -> Result<()> {
-    let sensor = presets::load(&args.sensor, &args.option, &args.set)?;
+    let sensor = args.sensor.load()?;
     for w in sensor.warnings() {
         eprintln!("warning: {w}");
     }

@@ -13,12 +13,32 @@ use eoir::scene::synthetic::{self, SceneParams};
 use eoir::scene::Geometry;
 use eoir::sensor::{presets, SensorConfig};
 
+/// How a command names its sensor: a file or preset, options and overrides.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SensorArgs {
+    /// Sensor: a TOML file or a preset name (see `eoir sensors`).
+    #[arg(long, default_value = "multimir")]
+    pub sensor: String,
+    /// Select a preset option, e.g. `--option filter=4 --option optics=100mm` (repeatable).
+    #[arg(long = "option", value_name = "NAME=VALUE")]
+    pub option: Vec<String>,
+    /// Override a sensor field, e.g. `--set detector.integration_time_s=2e-3` (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+}
+
+impl SensorArgs {
+    /// Loads the sensor these arguments name.
+    pub fn load(&self) -> Result<SensorConfig> {
+        Ok(presets::load(&self.sensor, &self.option, &self.set)?)
+    }
+}
+
 /// Arguments of `eoir run`.
 #[derive(Debug, clap::Args)]
 pub struct RunArgs {
-    /// Sensor: a TOML file or a preset name.
-    #[arg(long)]
-    sensor: String,
+    #[command(flatten)]
+    sensor: SensorArgs,
     /// Input radiance cube (.hdr ENVI, .exr spectral OpenEXR, .npy + .json, .h5 HDF5).
     input: PathBuf,
     /// Output directory.
@@ -27,12 +47,6 @@ pub struct RunArgs {
     /// Seed for all random effects.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Select a preset option, e.g. `--option filter=4` (repeatable).
-    #[arg(long = "option", value_name = "NAME=VALUE")]
-    option: Vec<String>,
-    /// Override a sensor field, e.g. `--set detector.integration_time_s=2e-3` (repeatable).
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    set: Vec<String>,
     /// Frames to expose of a static scene (fixed pattern identical, temporal noise fresh).
     #[arg(long, default_value_t = 1)]
     frames: usize,
@@ -57,15 +71,8 @@ pub struct DemoArgs {
     /// Output directory.
     #[arg(short, long, default_value = "eoir-demo")]
     output: PathBuf,
-    /// Sensor: a TOML file or a preset name.
-    #[arg(long, default_value = "multimir")]
-    sensor: String,
-    /// Select a preset option (repeatable).
-    #[arg(long = "option", value_name = "NAME=VALUE")]
-    option: Vec<String>,
-    /// Override a sensor field (repeatable).
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    set: Vec<String>,
+    #[command(flatten)]
+    sensor: SensorArgs,
     /// Scene oversampling relative to the detector pitch.
     #[arg(long, default_value_t = 2)]
     oversampling: usize,
@@ -231,15 +238,9 @@ fn calibration_options(degree: usize) -> CalibrationOptions {
 /// Arguments of `eoir temperature`.
 #[derive(Debug, clap::Args)]
 pub struct TemperatureArgs {
-    /// Sensor: a TOML file or a preset name (the one that recorded the image).
-    #[arg(long)]
-    sensor: String,
-    /// Select a preset option (repeatable).
-    #[arg(long = "option", value_name = "NAME=VALUE")]
-    option: Vec<String>,
-    /// Override a sensor field (repeatable).
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    set: Vec<String>,
+    /// The sensor that recorded the image.
+    #[command(flatten)]
+    sensor: SensorArgs,
     /// Seed of the sensor instance that recorded the DN image (its fixed pattern).
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -256,7 +257,7 @@ pub struct TemperatureArgs {
 /// `eoir temperature`: DN (through NUC, bad-pixel replacement and the sensor's response) or
 /// in-band radiance → apparent temperature.
 pub fn temperature(args: TemperatureArgs) -> Result<()> {
-    let sensor = presets::load(&args.sensor, &args.option, &args.set)?;
+    let sensor = args.sensor.load()?;
     if !eoir::pipeline::is_thermal(&sensor) {
         bail!(
             "sensor `{}` does not respond beyond 3 µm: apparent temperature needs a thermal sensor",
@@ -325,17 +326,17 @@ pub fn run(args: RunArgs) -> Result<()> {
         ..Default::default()
     };
     if !args.composite {
-        let sensor = presets::load(&args.sensor, &args.option, &args.set)?;
+        let sensor = args.sensor.load()?;
         run_file(&sensor, &args.input, &args.output, options, args.quiet)?;
         return Ok(());
     }
     let info = presets::list()
         .into_iter()
-        .find(|p| p.name.eq_ignore_ascii_case(&args.sensor))
+        .find(|p| p.name.eq_ignore_ascii_case(&args.sensor.sensor))
         .with_context(|| {
             format!(
                 "--composite needs a preset with a `channel` option, not `{}`",
-                args.sensor
+                args.sensor.sensor
             )
         })?;
     let channels = info
@@ -356,10 +357,10 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     let mut outs = Vec::new();
     for ch in &channels {
-        let mut opts = args.option.clone();
+        let mut opts = args.sensor.option.clone();
         opts.retain(|o| !o.starts_with("channel="));
         opts.push(format!("channel={ch}"));
-        let sensor = presets::load(&args.sensor, &opts, &args.set)?;
+        let sensor = presets::load(&args.sensor.sensor, &opts, &args.sensor.set)?;
         let out = run_file(
             &sensor,
             &args.input,
@@ -382,7 +383,7 @@ pub fn run(args: RunArgs) -> Result<()> {
 /// `eoir demo`: the thermal scene, sized to cover the sensor at `oversampling` scene samples
 /// per detector pixel and its spectral band, through the sensor.
 pub fn demo(args: DemoArgs) -> Result<()> {
-    let sensor = presets::load(&args.sensor, &args.option, &args.set)?;
+    let sensor = args.sensor.load()?;
     if args.oversampling == 0 {
         bail!("--oversampling must be at least 1");
     }

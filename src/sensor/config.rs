@@ -888,8 +888,8 @@ fn prefix_field(section: &str, e: Error) -> Error {
     }
 }
 
-/// Turns a TOML error into one line: `source line L: message (the line's text)`.
-fn toml_error(source: &str, text: &str, e: &toml::de::Error) -> Error {
+/// Turns a TOML error into one line: `source: line L (`text`): message`.
+pub(crate) fn toml_error(source: &str, text: &str, e: &toml::de::Error) -> Error {
     let msg = e.message().trim().replace('\n', " ");
     match e.span() {
         Some(span) => {

@@ -41,6 +41,7 @@ use std::path::{Path, PathBuf};
 use crate::error::{Error, Result};
 use crate::spectrum::Spectrum;
 
+use super::config::toml_error;
 use super::config::{SensorConfig, SpectrumConfig};
 
 /// The embedded presets: (name, TOML text).
@@ -418,19 +419,6 @@ fn deep_merge(base: &mut toml::Table, overlay: toml::Table) {
                 base.insert(k, v);
             }
         }
-    }
-}
-
-/// Turns a TOML syntax error into one line: `source: line L (`text`): message`.
-fn toml_error(source: &str, text: &str, e: &toml::de::Error) -> Error {
-    let msg = e.message().trim().replace('\n', " ");
-    match e.span() {
-        Some(span) => {
-            let line_no = text[..span.start.min(text.len())].matches('\n').count() + 1;
-            let line = text.lines().nth(line_no - 1).unwrap_or("").trim();
-            Error::format(source, format!("line {line_no} (`{line}`): {msg}"))
-        }
-        None => Error::format(source, msg),
     }
 }
 
