@@ -289,6 +289,9 @@ pub fn run(
                     "bad_pixels": cal.bad_pixels().count(),
                     "residual_nonuniformity": {"at_k": t_check, "raw": raw_nu, "corrected": nuc_nu},
                     "netd_analytic_k_at_300k": cal.netd_analytic_k(300.0).ok(),
+                    "netd_measured_k_at_300k": crate::calibration::measured_netd(
+                        sensor, &instance, 300.0, 0.25, 16, Some(cal.bad_pixels()),
+                    ).ok(),
                     "uninvertible_pixels": nan_total,
                     "radiance_definition": "in-band radiance: integral of S(λ) L(λ) dλ / max S, W m-2 sr-1",
                 });
@@ -447,6 +450,9 @@ impl RunOutput {
                     let p = dir.join(format!("{prefix}{name}.tiff"));
                     raster::write_tiff_f32(&p, img.view())?;
                     written.push(p);
+                    let p = dir.join(format!("{prefix}{name}.exr"));
+                    raster::write_exr_f32(&p, img.view(), name)?;
+                    written.push(p);
                 }
             }
             if let Some(rgb) = &f.rgb {
@@ -471,6 +477,37 @@ impl RunOutput {
                     }
                 })
                 .collect();
+            let extra: Vec<(String, String)> = (0..self.frames.len())
+                .map(|i| {
+                    if single {
+                        ("radiance".to_string(), "temperature".to_string())
+                    } else {
+                        (
+                            format!("frame_{i:04}_radiance"),
+                            format!("frame_{i:04}_temperature"),
+                        )
+                    }
+                })
+                .collect();
+            for (f, (rad, temp)) in self.frames.iter().zip(&extra) {
+                if let Some(r) = &f.radiance {
+                    items.push(BundleItem {
+                        name: rad,
+                        data: BundleData::F32(r.view()),
+                        attrs: vec![(
+                            "units",
+                            "W m-2 sr-1 (in-band, normalised to peak response)".to_string(),
+                        )],
+                    });
+                }
+                if let Some(t) = &f.temperature {
+                    items.push(BundleItem {
+                        name: temp,
+                        data: BundleData::F32(t.view()),
+                        attrs: vec![("units", "K (apparent, blackbody-equivalent)".to_string())],
+                    });
+                }
+            }
             for (f, (dn, el)) in self.frames.iter().zip(&names) {
                 items.push(BundleItem {
                     name: dn,
