@@ -196,9 +196,10 @@ pub fn run(
     let white_balance = white_balance(&channel_sensors)?;
     let imager = &imagers[0];
     warnings.extend(imager.sampling().warnings.iter().cloned());
-    let model = DetectorModel::from_config(sensor)?;
+    let mut model = DetectorModel::from_config(sensor)?;
     warnings.extend(model.warnings().iter().cloned());
-    let instance = DetectorInstance::new(&model, options.seed)?;
+    let scene_gain = model.scene_mean_gain_fraction(sensor);
+    let mut instance: Option<DetectorInstance> = None;
     let input_frames = reader.frames();
     let static_scene = input_frames == 1;
     let n_frames = if static_scene {
@@ -238,6 +239,17 @@ pub fn run(
         let e = mean
             .as_ref()
             .ok_or_else(|| Error::OutOfRange("no frame imaged".into()))?;
+        if instance.is_none() {
+            // `reference = "scene_mean"`: K from the first frame's mean signal.
+            if let Some(fraction) = scene_gain {
+                let mean_e = e.iter().sum::<f64>() / e.len().max(1) as f64;
+                model.set_gain_from_scene_mean(mean_e, fraction)?;
+            }
+            instance = Some(DetectorInstance::new(&model, options.seed)?);
+        }
+        let instance = instance
+            .as_ref()
+            .ok_or_else(|| Error::OutOfRange("no detector instance".into()))?;
         let t0 = Instant::now();
         let dn = instance.expose(e, f as u64)?;
         detector_s += t0.elapsed().as_secs_f64();
@@ -265,6 +277,7 @@ pub fn run(
             temperature: None,
         });
     }
+    let instance = instance.ok_or_else(|| Error::OutOfRange("no frame was exposed".into()))?;
     // The way back: calibrate through the same sensor instance, then invert.
     let t_cal = Instant::now();
     let mut calibration_report = serde_json::Value::Null;

@@ -355,12 +355,27 @@ pub fn run(args: RunArgs) -> Result<()> {
             channels.len()
         );
     }
-    let mut outs = Vec::new();
+    // Longest-wavelength channel first: with a scene-mean auto gain it sets K for all.
+    let mut sensors = Vec::new();
     for ch in &channels {
         let mut opts = args.sensor.option.clone();
         opts.retain(|o| !o.starts_with("channel="));
         opts.push(format!("channel={ch}"));
         let sensor = presets::load(&args.sensor.sensor, &opts, &args.sensor.set)?;
+        sensors.push((
+            eoir::report::mean_wavelength_um(&sensor)?,
+            ch.clone(),
+            sensor,
+        ));
+    }
+    sensors.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let mut outs = Vec::new();
+    let mut shared_gain: Option<f64> = None;
+    for (lambda, ch, mut sensor) in sensors {
+        if let Some(k) = shared_gain {
+            sensor.detector.auto_gain = None;
+            sensor.detector.gain_dn_per_e = Some(k);
+        }
         let out = run_file(
             &sensor,
             &args.input,
@@ -368,7 +383,10 @@ pub fn run(args: RunArgs) -> Result<()> {
             options.clone(),
             args.quiet,
         )?;
-        outs.push((eoir::report::mean_wavelength_um(&sensor)?, out));
+        if shared_gain.is_none() {
+            shared_gain = out.report["detector"]["gain_dn_per_e"].as_f64();
+        }
+        outs.push((lambda, out));
     }
     let refs: Vec<(f64, &pipeline::RunOutput)> = outs.iter().map(|(l, o)| (*l, o)).collect();
     let rgb = pipeline::false_colour_composite(&refs)?;

@@ -515,8 +515,13 @@ fn uniform_300k_scene_round_trips_to_temperature() {
         .unwrap();
     assert!((m - 300.0).abs() < 0.05, "mean apparent temperature {m}");
     // The measured NETD (frame stacks at 300 and 300.25 K) agrees with the analytic one.
-    let measured = report["calibration"]["netd_measured_k_at_300k"].as_f64().unwrap();
-    assert!((measured / netd - 1.0).abs() < 0.05, "measured {measured} vs analytic {netd}");
+    let measured = report["calibration"]["netd_measured_k_at_300k"]
+        .as_f64()
+        .unwrap();
+    assert!(
+        (measured / netd - 1.0).abs() < 0.05,
+        "measured {measured} vs analytic {netd}"
+    );
     assert!(a.join("temperature.exr").exists() && a.join("radiance.exr").exists());
     assert!(
         sd < 1.3 * netd && sd > 0.7 * netd,

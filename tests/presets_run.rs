@@ -175,3 +175,31 @@ fn bayer_grey_scene_comes_out_grey() {
         "r {r} g {g} b {b}"
     );
 }
+
+/// FOI report §4.2: the three-band camera's gain puts the scene mean of the NIR band at half
+/// of the 10-bit range (measured on the output DN, ±1 %).
+#[test]
+fn threeband_nir_scene_mean_sits_at_half_range() {
+    let small = [
+        "detector.rows=48".to_string(),
+        "detector.cols=64".to_string(),
+    ];
+    let s = presets::load("threeband", &["channel=3".into()], &small).unwrap();
+    let params = SceneParams {
+        rows: 48,
+        cols: 64,
+        oversampling: 2,
+        wavelength_um: SceneParams::uniform_grid(0.38, 0.98, 61).unwrap(),
+        fov_x_deg: (s.ifov_rad() * 64.0).to_degrees(),
+        range_m: Some(1000.0),
+        seed: 4,
+        sun: true,
+    };
+    let cube = synthetic::thermal(&params).unwrap();
+    let mut reader = MemoryCube::new(cube);
+    let out = pipeline::run(&s, &mut reader, &RunOptions::default(), |_, _| {}).unwrap();
+    let dn = &out.frames[0].dn;
+    let mean = dn.iter().map(|v| *v as f64).sum::<f64>() / dn.len() as f64;
+    let half = (2f64.powi(10) - 1.0) / 2.0;
+    assert!((mean / half - 1.0).abs() < 0.01, "mean DN {mean} vs {half}");
+}

@@ -300,6 +300,10 @@ pub enum AutoGainReference {
     /// A Lambertian reflector of `reflectance` under the Sun at `sun_zenith_deg`
     /// (reflective-band sensors).
     ReflectedSun,
+    /// The mean of the scene being imaged (FOI report §4.2: the three-band camera's gain
+    /// puts the NIR band's scene mean at half range). K is set by the run once the first
+    /// frame's mean electrons are known (`DetectorModel::set_gain_from_scene_mean`).
+    SceneMean,
 }
 
 /// `[detector.auto_gain]`: choose K so that a reference scene lands at `fraction` of the

@@ -91,6 +91,8 @@ pub fn reference_electrons(
     });
     let camera = sensor.camera_equation()?;
     let e = match kind {
+        // Not known until the scene is imaged; the full well stands in until then.
+        AutoGainReference::SceneMean => sensor.detector.full_well_e,
         AutoGainReference::Blackbody => camera
             .electrons_blackbody(config.reference_temperature_k, &response)
             .map_err(|e| {

@@ -253,6 +253,25 @@ impl DetectorModel {
         self.shot_noise
     }
 
+    /// Whether K is to be set from the imaged scene (`reference = "scene_mean"`), and the
+    /// fraction of the range the scene mean should reach.
+    pub fn scene_mean_gain_fraction(&self, sensor: &SensorConfig) -> Option<f64> {
+        match (&sensor.detector.auto_gain, self.auto_gain_reference) {
+            (Some(a), Some((AutoGainReference::SceneMean, _))) => Some(a.fraction),
+            _ => None,
+        }
+    }
+
+    /// Sets K so that a pixel receiving `mean_signal_e` signal electrons (plus dark and
+    /// background) lands at `fraction` of the range above the offset (the same rule as the
+    /// other auto-gain references).
+    pub fn set_gain_from_scene_mean(&mut self, mean_signal_e: f64, fraction: f64) -> Result<()> {
+        let e_total = mean_signal_e + self.dark_e + self.background_e;
+        self.gain_dn_per_e = gain::gain_for(self, fraction, e_total)?;
+        self.auto_gain_reference = Some((AutoGainReference::SceneMean, mean_signal_e));
+        Ok(())
+    }
+
     /// The auto-gain reference used and its mean signal electrons (without dark and
     /// background), when K came from `[detector.auto_gain]`.
     pub fn auto_gain_reference(&self) -> Option<(AutoGainReference, f64)> {
