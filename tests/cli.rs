@@ -94,14 +94,15 @@ fn missing_file_is_named() {
     assert!(!Path::new("/nonexistent").exists());
 }
 
-/// Writes a small ENVI cube by hand (BSQ float32 little-endian) and returns the header path.
-fn write_envi(
+/// Writes an ENVI cube by hand (BSQ float32 little-endian), every pixel of band b equal to
+/// `value(λ_b)`, and returns the header path.
+fn write_envi_with(
     dir: &Path,
     name: &str,
     bands: &[f64],
     rows: usize,
     cols: usize,
-    value: f32,
+    value: impl Fn(f64) -> f32,
     fov: Option<(f64, f64)>,
 ) -> std::path::PathBuf {
     let hdr = dir.join(format!("{name}.hdr"));
@@ -117,11 +118,27 @@ fn write_envi(
     }
     std::fs::write(&hdr, h).unwrap();
     let mut bytes = Vec::new();
-    for _ in 0..bands.len() * rows * cols {
-        bytes.extend_from_slice(&value.to_le_bytes());
+    for l in bands {
+        let v = value(*l);
+        for _ in 0..rows * cols {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
     }
     std::fs::write(&img, bytes).unwrap();
     hdr
+}
+
+/// A spectrally flat ENVI cube of constant `value`.
+fn write_envi(
+    dir: &Path,
+    name: &str,
+    bands: &[f64],
+    rows: usize,
+    cols: usize,
+    value: f32,
+    fov: Option<(f64, f64)>,
+) -> std::path::PathBuf {
+    write_envi_with(dir, name, bands, rows, cols, |_| value, fov)
 }
 
 fn mwir_grid() -> Vec<f64> {
@@ -428,35 +445,21 @@ fn planck(l_um: f64, t: f64) -> f64 {
     2.0 * h * c * c / l.powi(5) / ((h * c / (l * k * t)).exp() - 1.0) * 1e-6
 }
 
-/// Writes a uniform blackbody ENVI cube for the multimir band at `rows × cols`.
+/// A uniform blackbody ENVI cube for the multimir band at `rows × cols`.
 fn blackbody_envi(dir: &Path, name: &str, t: f64, rows: usize, cols: usize) -> std::path::PathBuf {
-    let wl = mwir_grid();
-    let hdr = dir.join(format!("{name}.hdr"));
     let fov = (
         (cols as f64 * 0.24e-3).to_degrees(),
         (rows as f64 * 0.24e-3).to_degrees(),
     );
-    let w: Vec<String> = wl.iter().map(|v| v.to_string()).collect();
-    std::fs::write(
-        &hdr,
-        format!(
-            "ENVI\nsamples = {cols}\nlines = {rows}\nbands = {}\ndata type = 4\ninterleave = bsq\nbyte order = 0\nwavelength units = Micrometers\nwavelength = {{{}}}\neoir fov deg = {{{}, {}}}\n",
-            wl.len(),
-            w.join(","),
-            fov.0,
-            fov.1
-        ),
+    write_envi_with(
+        dir,
+        name,
+        &mwir_grid(),
+        rows,
+        cols,
+        |l| planck(l, t) as f32,
+        Some(fov),
     )
-    .unwrap();
-    let mut bytes = Vec::new();
-    for l in &wl {
-        let v = planck(*l, t) as f32;
-        for _ in 0..rows * cols {
-            bytes.extend_from_slice(&v.to_le_bytes());
-        }
-    }
-    std::fs::write(dir.join(format!("{name}.img")), bytes).unwrap();
-    hdr
 }
 
 fn run_multimir(input: &Path, out: &Path, seed: &str, extra: &[&str]) {
