@@ -23,6 +23,22 @@
 //! - [`pipeline`]: the whole chain top to bottom, and the products it writes.
 //! - [`scene`]: the spectral radiance cube type and its geometry.
 //! - [`io`]: cube readers/writers (ENVI, spectral EXR, NPY, HDF5) and product writers.
+//!
+//! ```no_run
+//! use eoir::{io, pipeline, sensor::presets};
+//!
+//! # fn main() -> eoir::Result<()> {
+//! let options = ["filter=4".to_string()]; // preset options
+//! let overrides = ["detector.integration_time_s=2e-3".to_string()]; // like --set
+//! let sensor = presets::load("multimir", &options, &overrides)?;
+//! let mut cube = io::open(std::path::Path::new("scene.hdr"))?; // band-by-band reader
+//! let out = pipeline::run(&sensor, cube.as_mut(), &pipeline::RunOptions::default(), |_, _| {})?;
+//! let dn = &out.frames[0].dn; // Array2<u16>
+//! assert_eq!(dn.dim(), (sensor.detector.rows, sensor.detector.cols));
+//! out.write(std::path::Path::new("out"))?;
+//! # Ok(())
+//! # }
+//! ```
 #![warn(missing_docs)]
 
 pub mod atmosphere;
