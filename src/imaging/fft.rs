@@ -59,58 +59,68 @@ impl RealFft2 {
 
     /// Forward transform of `input` (`[rows, cols]`, standard layout; used as scratch and
     /// left unspecified) into `out` (`[rows, cols/2+1]`), unnormalised:
-    /// `X[v,u] = Σ x[y,x] exp(−2πi (vy/rows + ux/cols))`.
-    pub fn forward(&self, input: &mut Array2<f64>, out: &mut Array2<Complex64>) {
+    /// `X[v,u] = Σ x[y,x] exp(−2πi (vy/rows + ux/cols))`. `scratch` is resized as needed
+    /// and can be reused across calls (no allocation per band).
+    pub fn forward(
+        &self,
+        input: &mut Array2<f64>,
+        out: &mut Array2<Complex64>,
+        scratch: &mut Vec<Complex64>,
+    ) {
         let (rows, cols) = (self.rows, self.cols);
         let hc = cols / 2 + 1;
         assert_eq!(input.dim(), (rows, cols), "RealFft2::forward input shape");
         assert_eq!(out.dim(), (rows, hc), "RealFft2::forward output shape");
         let inp = input.as_slice_mut().expect("standard layout");
-        let mut rowspec = vec![Complex64::new(0.0, 0.0); rows * hc];
-        rowspec
-            .par_chunks_mut(hc)
+        let o = out.as_slice_mut().expect("standard layout");
+        // Real transforms of the rows, straight into the output buffer.
+        o.par_chunks_mut(hc)
             .zip(inp.par_chunks_mut(cols))
             .for_each_init(
                 || self.r2c.make_scratch_vec(),
-                |scratch, (o, i)| {
+                |sc, (o, i)| {
                     // Lengths match the plan by construction.
-                    let _ = self.r2c.process_with_scratch(i, o, scratch);
+                    let _ = self.r2c.process_with_scratch(i, o, sc);
                 },
             );
-        let mut t = vec![Complex64::new(0.0, 0.0); rows * hc];
-        transpose::transpose(&rowspec, &mut t, hc, rows);
-        self.columns(&self.col_forward, &mut t);
-        let o = out.as_slice_mut().expect("standard layout");
-        transpose::transpose(&t, o, rows, hc);
+        scratch.resize(rows * hc, Complex64::new(0.0, 0.0));
+        transpose::transpose(o, scratch, hc, rows);
+        self.columns(&self.col_forward, scratch);
+        transpose::transpose(scratch, o, rows, hc);
     }
 
     /// Inverse transform of a Hermitian half-plane spectrum (`[rows, cols/2+1]`, used as
     /// scratch) into `out` (`[rows, cols]`), normalised by 1/(rows·cols) so that
-    /// `inverse(forward(x)) = x`.
-    pub fn inverse(&self, spectrum: &mut Array2<Complex64>, out: &mut Array2<f64>) {
+    /// `inverse(forward(x)) = x`. `scratch` as in [`RealFft2::forward`].
+    pub fn inverse(
+        &self,
+        spectrum: &mut Array2<Complex64>,
+        out: &mut Array2<f64>,
+        scratch: &mut Vec<Complex64>,
+    ) {
         let (rows, cols) = (self.rows, self.cols);
         let hc = cols / 2 + 1;
         assert_eq!(spectrum.dim(), (rows, hc), "RealFft2::inverse input shape");
         assert_eq!(out.dim(), (rows, cols), "RealFft2::inverse output shape");
         let s = spectrum.as_slice_mut().expect("standard layout");
-        let mut t = vec![Complex64::new(0.0, 0.0); rows * hc];
-        transpose::transpose(s, &mut t, hc, rows);
-        self.columns(&self.col_inverse, &mut t);
-        transpose::transpose(&t, s, rows, hc);
+        scratch.resize(rows * hc, Complex64::new(0.0, 0.0));
+        transpose::transpose(s, scratch, hc, rows);
+        self.columns(&self.col_inverse, scratch);
+        transpose::transpose(scratch, s, rows, hc);
         let norm = 1.0 / (rows * cols) as f64;
         let o = out.as_slice_mut().expect("standard layout");
         o.par_chunks_mut(cols)
             .zip(s.par_chunks_mut(hc))
             .for_each_init(
                 || self.c2r.make_scratch_vec(),
-                |scratch, (o, i)| {
+                |sc, (o, i)| {
                     // realfft requires exactly real DC (and Nyquist for even lengths) bins; for
                     // the spectrum of a real image they are real up to rounding.
                     i[0].im = 0.0;
                     if cols % 2 == 0 {
                         i[hc - 1].im = 0.0;
                     }
-                    let _ = self.c2r.process_with_scratch(i, o, scratch);
+                    let _ = self.c2r.process_with_scratch(i, o, sc);
                     for v in o.iter_mut() {
                         *v *= norm;
                     }
@@ -143,7 +153,8 @@ mod tests {
             let fft = RealFft2::new(rows, cols);
             let mut inp = x.clone();
             let mut spec = Array2::zeros(fft.spectrum_shape());
-            fft.forward(&mut inp, &mut spec);
+            let mut scratch = Vec::new();
+            fft.forward(&mut inp, &mut spec, &mut scratch);
             for v in 0..rows {
                 for u in 0..cols / 2 + 1 {
                     let mut acc = Complex64::new(0.0, 0.0);
@@ -162,7 +173,7 @@ mod tests {
                 }
             }
             let mut back = Array2::zeros((rows, cols));
-            fft.inverse(&mut spec, &mut back);
+            fft.inverse(&mut spec, &mut back, &mut scratch);
             for (a, b) in back.iter().zip(x.iter()) {
                 assert!((a - b).abs() < 1e-10);
             }

@@ -562,6 +562,7 @@ impl Imager {
         let mut spec = Array2::<Complex64>::zeros(self.fft.spectrum_shape());
         let mut padded = Array2::<f64>::zeros((ny, nx));
         let mut otf_buf = Array2::<f64>::zeros(self.fft.spectrum_shape());
+        let mut scratch = Vec::new();
         let mut stats = ImagingStats {
             padded_shape: (ny, nx),
             ..Default::default()
@@ -572,7 +573,7 @@ impl Imager {
             let plane = reader.read_band(frame, b)?;
             let t1 = Instant::now();
             self.pad_into(plane.view(), &mut padded);
-            self.fft.forward(&mut padded, &mut spec);
+            self.fft.forward(&mut padded, &mut spec, &mut scratch);
             let t2 = Instant::now();
             let w = self.weights.electrons_per_unit[b];
             grid_otf.at_wavelength_into(self.weights.wavelength_um[b], &mut otf_buf);
@@ -591,7 +592,7 @@ impl Imager {
         }
         let t0 = Instant::now();
         let mut e = if self.sampling.integer {
-            self.sample_integer(&mut acc)
+            self.sample_integer(&mut acc, &mut scratch)
         } else {
             self.sample_trigonometric(&acc)
         };
@@ -612,18 +613,16 @@ impl Imager {
 
     /// Pads a band plane into the FFT buffer (see `PadMap`).
     fn pad_into(&self, plane: ArrayView2<f32>, out: &mut Array2<f64>) {
-        let ym = &self.pad_y;
         let xm = &self.pad_x;
         out.axis_iter_mut(Axis(0))
             .into_par_iter()
-            .zip(&ym.taps)
+            .zip(&self.pad_y.taps)
             .for_each(|(mut row, ty)| {
+                let (ra, rb) = (plane.row(ty.a), plane.row(ty.b));
+                // Blend of the two source rows (equal rows inside the image).
+                let v = |c: usize| ty.w * ra[c] as f64 + (1.0 - ty.w) * rb[c] as f64;
                 for (o, tx) in row.iter_mut().zip(&xm.taps) {
-                    let v = |r: usize| {
-                        let src = plane.row(r);
-                        tx.w * src[tx.a] as f64 + (1.0 - tx.w) * src[tx.b] as f64
-                    };
-                    *o = ty.w * v(ty.a) + (1.0 - ty.w) * v(ty.b);
+                    *o = tx.w * v(tx.a) + (1.0 - tx.w) * v(tx.b);
                 }
             });
     }
@@ -631,7 +630,11 @@ impl Imager {
     /// Integer ratio: shift by the fractional part of the first pixel position with a
     /// phase ramp (exact for the band-limited image; on an even axis the Nyquist bin takes
     /// the average of the ± ramps, cos(πs)), one inverse FFT, point sampling.
-    fn sample_integer(&self, acc: &mut Array2<Complex64>) -> Array2<f64> {
+    fn sample_integer(
+        &self,
+        acc: &mut Array2<Complex64>,
+        scratch: &mut Vec<Complex64>,
+    ) -> Array2<f64> {
         let (sy, sx) = (&self.sampling.y, &self.sampling.x);
         let (ny, nx) = (sy.padded_len, sx.padded_len);
         let start_y = sy.position(0);
@@ -662,7 +665,7 @@ impl Imager {
                 });
         }
         let mut img = Array2::<f64>::zeros((ny, nx));
-        self.fft.inverse(acc, &mut img);
+        self.fft.inverse(acc, &mut img, scratch);
         let (y0, x0) = (start_y.floor() as usize, start_x.floor() as usize);
         let (ky, kx) = (
             sy.integer_ratio().unwrap_or(1),
