@@ -149,7 +149,7 @@ fn mtf(args: MtfArgs) -> Result<()> {
         None => mean_wavelength_um(&sensor).context("choosing the default wavelength")?,
     };
     let curves = MtfCurves::compute(&sensor, wavelength_um, args.max_cy_per_mrad, args.points)?;
-    let at_nyquist = curves.system_at_nyquist(&sensor)?;
+    let at_nyquist = curves.system_at_nyquist;
     println!(
         "{}: λ = {:.3} µm, optical cutoff {:.3} cy/mrad, detector Nyquist {:.3} cy/mrad, system MTF at Nyquist {:.4}",
         sensor.name, wavelength_um, curves.cutoff_cy_per_mrad, curves.nyquist_cy_per_mrad, at_nyquist

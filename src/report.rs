@@ -23,6 +23,8 @@ pub struct MtfCurves {
     pub nyquist_cy_per_mrad: f64,
     /// Diffraction cutoff D/λ, cycles/mrad.
     pub cutoff_cy_per_mrad: f64,
+    /// The system transfer function at the detector Nyquist frequency (along x).
+    pub system_at_nyquist: f64,
 }
 
 impl MtfCurves {
@@ -72,19 +74,15 @@ impl MtfCurves {
             .map(|f| otf.evaluate(f * 1e3, 0.0, wavelength_um))
             .collect();
         columns.push(("system".to_string(), system));
+        let system_at_nyquist = otf.evaluate(sensor.nyquist_cy_per_rad(), 0.0, wavelength_um);
         Ok(MtfCurves {
+            system_at_nyquist,
             wavelength_um,
             freq_cy_per_mrad: freq,
             columns,
             nyquist_cy_per_mrad: nyquist,
             cutoff_cy_per_mrad: cutoff,
         })
-    }
-
-    /// The system transfer function at the detector Nyquist frequency.
-    pub fn system_at_nyquist(&self, sensor: &SensorConfig) -> Result<f64> {
-        let otf = SystemOtf::new(sensor)?;
-        Ok(otf.evaluate(sensor.nyquist_cy_per_rad(), 0.0, self.wavelength_um))
     }
 
     /// Writes the curves as CSV: `freq_cy_per_mrad`, one column per component, `system`.
