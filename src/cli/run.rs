@@ -309,7 +309,7 @@ pub fn temperature(args: TemperatureArgs) -> Result<()> {
 pub fn run(args: RunArgs) -> Result<()> {
     let geometry = match &args.fov_deg {
         Some(t) => {
-            let (h, v) = super::parse_pair(t, "--fov-deg")?;
+            let (h, v) = crate::cli::parse_pair(t, "--fov-deg")?;
             Some(Geometry {
                 fov_x_deg: h,
                 fov_y_deg: v,

@@ -1,4 +1,3 @@
-#![cfg(feature = "hdf5")]
 //! HDF5 cubes, sequences and bundles. Files are checked and, for the reader tests, written
 //! with the HDF5 library directly, so reader and writer are each tested against an
 //! independent path.
