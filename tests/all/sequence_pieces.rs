@@ -10,19 +10,20 @@ use eoir::scene::Cube;
 use eoir::sensor::presets;
 
 /// A 5-frame sequence (the thermal scene scaled 0.9 … 1.1) for a 24 × 32 MultimIR.
-fn sequence() -> (eoir::sensor::SensorConfig, Vec<Cube>) {
+fn sequence() -> (eoir::sensor::Sensor, Vec<Cube>) {
     let small = [
         "detector.rows=24".to_string(),
         "detector.cols=32".to_string(),
     ];
-    let sensor = presets::load("multimir", &[], &small).unwrap();
-    let (lo, hi) = sensor.spectral_response().unwrap().support_um();
+    let config = presets::load("multimir", &[], &small).unwrap();
+    let sensor = eoir::sensor::Sensor::build(&config).unwrap();
+    let (lo, hi) = sensor.response().support_um();
     let params = SceneParams {
         rows: 24,
         cols: 32,
         oversampling: 2,
         wavelength_um: SceneParams::uniform_grid(lo, hi, 20).unwrap(),
-        fov_x_deg: (sensor.ifov_rad() * 32.0).to_degrees(),
+        fov_x_deg: (config.ifov_rad() * 32.0).to_degrees(),
         range_m: Some(1000.0),
         seed: 5,
         sun: true,
@@ -38,7 +39,7 @@ fn sequence() -> (eoir::sensor::SensorConfig, Vec<Cube>) {
 }
 
 fn run(
-    sensor: &eoir::sensor::SensorConfig,
+    sensor: &eoir::sensor::Sensor,
     frames: &[Cube],
     first_frame: u64,
 ) -> Vec<ndarray::Array2<u16>> {
