@@ -42,6 +42,11 @@ pub struct RunOptions {
     /// blackbody frames through the same sensor instance, then DN → in-band radiance →
     /// apparent temperature. `None` skips it.
     pub calibration: Option<CalibrationOptions>,
+    /// Index, within the whole sequence, of this run's first frame: frame `i` of the run
+    /// draws the temporal noise of sequence frame `first_frame + i` (the fixed pattern does
+    /// not depend on it). A sequence cut into pieces (e.g. chunks on several machines) and
+    /// run piece by piece with the right `first_frame` gives the same DN as one run.
+    pub first_frame: u64,
 }
 
 impl Default for RunOptions {
@@ -53,6 +58,7 @@ impl Default for RunOptions {
             input_name: String::from("memory"),
             frames: 1,
             calibration: Some(CalibrationOptions::default()),
+            first_frame: 0,
         }
     }
 }
@@ -251,7 +257,7 @@ pub fn run(
             .as_ref()
             .ok_or_else(|| Error::OutOfRange("no detector instance".into()))?;
         let t0 = Instant::now();
-        let dn = instance.expose(e, f as u64)?;
+        let dn = instance.expose(e, options.first_frame + f as u64)?;
         detector_s += t0.elapsed().as_secs_f64();
         let rgb = match &sensor.cfa {
             Some(cfa) => {

@@ -5,6 +5,7 @@ mod calibration;
 mod cfa;
 mod cli;
 mod detector;
+mod golden;
 mod imaging;
 mod io_envi;
 mod io_exr;
