@@ -57,6 +57,11 @@ pub struct RunOptions {
     /// blackbody frames through the same sensor instance, then DN → in-band radiance →
     /// apparent temperature. `None` skips it.
     pub calibration: Option<CalibrationOptions>,
+    /// Index, within the whole sequence, of this run's first frame: frame `i` of the run
+    /// draws the temporal noise of sequence frame `first_frame + i` (the fixed pattern does
+    /// not depend on it). A sequence cut into pieces (e.g. chunks on several machines) and
+    /// run piece by piece with the right `first_frame` gives the same DN as one run.
+    pub first_frame: u64,
 }
 
 impl Default for RunOptions {
@@ -68,6 +73,7 @@ impl Default for RunOptions {
             input_name: String::from("memory"),
             frames: 1,
             calibration: Some(CalibrationOptions::default()),
+            first_frame: 0,
         }
     }
 }
@@ -183,7 +189,7 @@ pub fn run(
             None => exposure.insert(Exposure::new(sensor, e, options.seed)?),
         };
         let t0 = Instant::now();
-        let dn = exposure.expose(e, f)?;
+        let dn = exposure.expose(e, options.first_frame + f as u64)?;
         detector_s += t0.elapsed().as_secs_f64();
         let rgb = colour::colour_image(sensor, exposure.model(), &dn);
         frames.push(FrameProducts {
