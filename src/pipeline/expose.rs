@@ -40,7 +40,8 @@ impl Exposure {
         &self.instance
     }
 
-    /// DN of frame `frame` for the mean signal electrons `mean_e`.
+    /// DN of sequence frame `frame` (its temporal noise stream) for the mean signal
+    /// electrons `mean_e`.
     pub fn expose(&self, mean_e: &Array2<f64>, frame: u64) -> Result<Array2<u16>> {
         self.instance.expose(mean_e, frame)
     }
