@@ -54,7 +54,8 @@ def main() -> None:
     if args.scheduler:
         client = Client(args.scheduler)
     else:
-        client = Client(LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True))
+        client = Client(LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
+                                     dashboard_address=":0"))
     print(f"dask dashboard: {client.dashboard_link}")
 
     scene_seeds = list(range(1, args.scenes + 1))

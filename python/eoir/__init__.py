@@ -219,17 +219,25 @@ class RunResult:
     sensor; ``warnings``.
     """
 
+    UNITS = {
+        "dn": "DN",
+        "electrons_mean": "electrons (mean, noise-free)",
+        "radiance": "W m-2 sr-1 (in-band, normalised to peak response)",
+        "temperature": "K (apparent, blackbody-equivalent)",
+    }
+
     def __init__(self, d: Dict[str, Any], squeeze: bool, wrap=None):
-        def prod(a):
+        def prod(name):
+            a = d[name]
             if a is None:
                 return None
             a = a[0] if squeeze else a
-            return wrap(a) if wrap is not None else a
+            return wrap(a, name, self.UNITS[name]) if wrap is not None else a
 
-        self.dn = prod(d["dn"])
-        self.electrons_mean = prod(d["electrons_mean"])
-        self.radiance = prod(d["radiance"])
-        self.temperature = prod(d["temperature"])
+        self.dn = prod("dn")
+        self.electrons_mean = prod("electrons_mean")
+        self.radiance = prod("radiance")
+        self.temperature = prod("temperature")
         self.report = json.loads(d["report_json"])
         self.config_toml = d["config_toml"]
         self.warnings = list(d["warnings"])
@@ -309,9 +317,9 @@ def run(
             range_m = attrs.get("range_m") if range_m is None else range_m
             units = attrs.get("units") if units is None else units
 
-            def wrap(a, lead=lead):
+            def wrap(a, name, unit):
                 dims = (["frame"] if a.ndim == 3 else []) + ["row", "col"]
-                return xr.DataArray(a, dims=dims)
+                return xr.DataArray(a, dims=dims, name=name, attrs={"units": unit})
 
     if wavelength_um is None:
         raise ValueError("invalid parameter `wavelength_um` = None: one wavelength (µm) per band")

@@ -187,6 +187,7 @@ def test_xarray_in_xarray_out(small_sensor, small_scene):
                         attrs={"fov_deg": c.fov_deg, "range_m": c.range_m})
     r = eoir.run(small_sensor, cube, seed=9)
     assert isinstance(r.dn, xr.DataArray) and r.dn.dims == ("row", "col")
+    assert r.temperature.attrs["units"].startswith("K")
     ref = eoir.run(small_sensor, c, seed=9)
     np.testing.assert_array_equal(r.dn.values, ref.dn)
     np.testing.assert_array_equal(r.temperature.values, ref.temperature)
@@ -205,3 +206,21 @@ def test_temperature_of_blackbody_scene():
     t = r.temperature[np.isfinite(r.temperature)]
     assert t.size > 0.9 * r.temperature.size
     assert np.median(t) == pytest.approx(300.0, abs=0.1)
+
+
+def test_degenerate_inputs_raise_not_crash(small_sensor):
+    """Empty, tiny and oddly shaped inputs give Python exceptions, never an abort."""
+    with pytest.raises(ValueError):
+        eoir.run(small_sensor, np.zeros((0, 4, 4), np.float32), [], (1.0, 1.0))
+    with pytest.raises(ValueError):
+        eoir.run(small_sensor, np.zeros((2, 0, 4), np.float32), [4.0, 4.5], (1.0, 1.0))
+    with pytest.raises(ValueError):
+        eoir.run(small_sensor, np.zeros((0, 2, 4, 4), np.float32), [4.0, 4.5], (1.0, 1.0))
+    with pytest.raises(ValueError):  # one pixel cannot cover the sensor's field of view
+        eoir.run(small_sensor, np.ones((2, 1, 1), np.float32), [4.0, 4.5], (1e-3, 1e-3))
+    with pytest.raises(ValueError):
+        eoir.run(small_sensor, np.ones((2, 4, 4), np.float32), [4.0, np.inf], (1.0, 1.0))
+    with pytest.raises(ValueError):
+        eoir.load_sensor("multimir", overrides={"detector.rows": 0})
+    with pytest.raises(ValueError):
+        eoir.mtf(small_sensor, [np.nan])

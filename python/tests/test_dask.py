@@ -29,6 +29,26 @@ def test_run_frames_any_chunking_equals_run(small_sensor, small_scene):
     np.testing.assert_array_equal(e.compute(scheduler="threads"), ref.electrons_mean)
 
 
+def test_run_frames_temperature_equals_run(small_sensor, small_scene):
+    """Calibration is rebuilt per chunk from the same sensor and seed: the same NUC, so the
+    same temperatures as one calibrated run."""
+    c = small_scene
+    seq = frames(c, 3)
+    ref = eoir.run(small_sensor, seq, c.wavelength_um, c.fov_deg, seed=13, range_m=c.range_m)
+    t = edask.run_frames(small_sensor, da.from_array(seq, chunks=(2, -1, -1, -1)), c.wavelength_um,
+                         c.fov_deg, seed=13, product="temperature", range_m=c.range_m)
+    np.testing.assert_array_equal(t.compute(scheduler="threads"), ref.temperature)
+    assert np.nanmedian(ref.temperature) > 250.0
+
+
+def test_scene_gain_sensor_needs_one_chunk():
+    s = eoir.load_sensor("threeband")
+    assert s.gain_from_scene
+    x = da.zeros((4, 3, 8, 8), chunks=(2, -1, -1, -1), dtype=np.float32)
+    with pytest.raises(ValueError, match="scene_mean"):
+        edask.run_frames(s, x, [0.5, 0.6, 0.7], (1.0, 1.0))
+
+
 def test_run_frames_rejects_bad_input(small_sensor, small_scene):
     c = small_scene
     with pytest.raises(ValueError, match="product"):

@@ -10,7 +10,7 @@
 use eoir::io::MemoryCube;
 use eoir::pipeline::{self, RunOptions};
 use eoir::scene::synthetic::{self, SceneParams};
-use eoir::sensor::presets;
+use eoir::sensor::{presets, Sensor};
 
 /// 64-bit FNV-1a (Fowler–Noll–Vo; offset basis 0xcbf29ce484222325, prime 0x100000001b3).
 fn fnv1a64(bytes: impl IntoIterator<Item = u8>) -> u64 {
@@ -39,8 +39,8 @@ fn golden_hash(preset: &str, options: &[&str], scene: &str, frames: usize) -> u6
         "detector.rows=24".to_string(),
         "detector.cols=32".to_string(),
     ];
-    let sensor = presets::load(preset, &options, &small).unwrap();
-    let (lo, hi) = sensor.spectral_response().unwrap().support_um();
+    let sensor = Sensor::build(&presets::load(preset, &options, &small).unwrap()).unwrap();
+    let (lo, hi) = sensor.response().support_um();
     let params = SceneParams {
         rows: 24,
         cols: 32,

@@ -22,4 +22,5 @@ mod processing;
 mod radiometry;
 mod scenes;
 mod sensor_config;
+mod sequence_pieces;
 mod spectrum;

@@ -10,7 +10,7 @@ use eoir::imaging::otf_table::{RadialTables, TABLE_TOLERANCE};
 use eoir::imaging::{Imager, DEFAULT_WRAP_TOLERANCE};
 use eoir::io::MemoryCube;
 use eoir::scene::{Cube, CubeMeta, Geometry, RadianceUnits};
-use eoir::sensor::{Component, SensorConfig, SystemOtf};
+use eoir::sensor::{Component, Sensor, SensorConfig, SystemOtf};
 
 const BASE: &str = r#"
 name = "t"
@@ -165,6 +165,7 @@ fn engine_grid_otf_matches_direct_cascade() {
     let s = sensor(&o);
     // k = 3 scene samples per detector pixel.
     let c = cube(12, 72, 90, s.ifov_rad() / 3.0);
+    let s = Sensor::build(&s).unwrap();
     let imager = Imager::new(&s, &c.meta, &c.meta.geometry.unwrap(), 1e-4).unwrap();
     let otf = imager.otf();
     assert_eq!(otf.components().len(), 9);
@@ -222,7 +223,7 @@ fn no_aperture_term_passes_beyond_the_cutoff() {
 /// of the accumulation and of the FFTs is computed the same way whatever the split).
 #[test]
 fn one_and_two_threads_give_identical_output() {
-    let s = sensor(&cases()[3]);
+    let s = Sensor::build(&sensor(&cases()[3])).unwrap();
     let c = cube(9, 75, 93, s.ifov_rad() / 3.0);
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
