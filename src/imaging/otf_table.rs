@@ -1,4 +1,4 @@
-//! Transfer functions from 1-D tables (DESIGN.md §4.14).
+//! Transfer functions from 1-D tables (docs/design.md §4.14).
 //!
 //! Every wavelength-dependent component of the cascade is radial and depends on frequency
 //! only through a λ-scaled argument:
@@ -40,7 +40,7 @@ pub const COMPONENT_MIDPOINT_TOLERANCE: f64 = 5e-8;
 pub const PROFILE_MIDPOINT_TOLERANCE: f64 = 1.5e-7;
 
 /// Largest number of intervals of any table (2^22: 32 MiB of f64; never reached by the
-/// transfer functions of DESIGN.md §4 at the tolerances above).
+/// transfer functions of docs/design.md §4 at the tolerances above).
 const MAX_INTERVALS: usize = 1 << 22;
 
 /// Turbulence is tabulated up to the u where `exp(−3.44 u^{5/3}) = 1e-9` and is 0 beyond.

@@ -262,7 +262,7 @@ impl SystemOtf {
     }
 
     /// Defocus edge wavefront error W020 (waves) at a wavelength, if defocus is enabled:
-    /// the configured value, or `δz / (8 N² λ)` for a focus shift (DESIGN.md §4.4).
+    /// the configured value, or `δz / (8 N² λ)` for a focus shift (docs/design.md §4.4).
     pub fn defocus_w020_waves(&self, wavelength_um: f64) -> Option<f64> {
         match self.defocus? {
             DefocusAmount::Waves(w) => Some(w),
@@ -281,7 +281,7 @@ impl SystemOtf {
     }
 
     /// Aerosol particle radius a (m), if the aerosol component is enabled: its transfer
-    /// function depends on frequency through ρλ/a (DESIGN.md §4.8).
+    /// function depends on frequency through ρλ/a (docs/design.md §4.8).
     pub fn aerosol_particle_radius_m(&self) -> Option<f64> {
         self.aerosol.as_ref().map(|a| a.particle_radius_m)
     }

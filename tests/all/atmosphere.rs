@@ -200,7 +200,7 @@ fn ground_sensor_sees_smaller_r0_than_airborne_sensor() {
     // through the small weight near the target. The weighted integral is 25× larger
     // for the ground sensor (9.41 vs 0.373 in units of Cn²₀ · m, from an independent
     // log-height Simpson quadrature), so r0 is 25^{3/5} ≈ 6.94× smaller: the "~7×" of
-    // DESIGN.md §4.7. The ratio depends only on the two heights: Cn²₀, R and λ cancel.
+    // docs/design.md §4.7. The ratio depends only on the two heights: Cn²₀, R and λ cancel.
     for &(cn2, range, lambda) in &[(1e-13, 5000.0, 1.0e-6), (3e-15, 8000.0, 10.0e-6)] {
         let ground = path(cn2, 2.0, 1000.0, range, SensorEnd::Lower);
         let air = path(cn2, 2.0, 1000.0, range, SensorEnd::Upper);
