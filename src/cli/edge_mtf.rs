@@ -9,7 +9,7 @@ use serde_json::json;
 use eoir::plot::{self, LinePlot, Marker, Series};
 use eoir::processing::edge_mtf::{slanted_edge_mtf, Roi};
 use eoir::processing::wiener::{replace_invalid_pixels, IMPULSE_K_SIGMA};
-use eoir::sensor::presets;
+use eoir::sensor::{presets, Sensor};
 
 use super::restore::read_image;
 
@@ -40,7 +40,7 @@ pub struct EdgeMtfArgs {
 /// `eoir edge-mtf`.
 pub fn edge_mtf(args: EdgeMtfArgs) -> Result<()> {
     let sensor = match &args.sensor {
-        Some(s) => Some(presets::load(s, &args.option, &args.set)?),
+        Some(s) => Some(Sensor::build(&presets::load(s, &args.option, &args.set)?)?),
         None => None,
     };
     let roi = args.roi.as_deref().map(Roi::parse).transpose()?;

@@ -7,7 +7,6 @@ use anyhow::{bail, Context, Result};
 use ndarray::Array2;
 use serde_json::json;
 
-use eoir::detector::DetectorModel;
 use eoir::io::raster;
 use eoir::processing::wiener::{
     self, replace_invalid_pixels, NoiseRule, SensorTransfer, IMPULSE_K_SIGMA,
@@ -162,7 +161,7 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
             sensor.detector.rows
         );
     }
-    let model = DetectorModel::from_config(&sensor)?;
+    let model = sensor.detector();
     let black = match kind {
         InputKind::Dn => {
             let b = args.black_level.unwrap_or_else(|| model.expected_dn(0.0));
@@ -232,7 +231,7 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
             "mtf_at_nyquist_x": mtf_nyquist_x,
             "mtf_at_nyquist_y": mtf_nyquist_y,
             "spectral_weighting_temperature_k": transfer.reference_temperature_k(),
-            "components": eoir::sensor::SystemOtf::new(&sensor)?.components().iter().map(|c| c.name()).collect::<Vec<_>>(),
+            "components": sensor.otf().components().iter().map(|c| c.name()).collect::<Vec<_>>(),
         },
         "padded_shape": [r.padded_shape.0, r.padded_shape.1],
         "input_stats": stats(&image),

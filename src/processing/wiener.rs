@@ -49,7 +49,7 @@ use crate::error::{Error, Result};
 use crate::imaging::fft::RealFft2;
 use crate::imaging::next_fast_len;
 use crate::radiometry::planck_photon_radiance;
-use crate::sensor::{FrequencyGrid, SensorConfig, SystemOtf};
+use crate::sensor::{FrequencyGrid, Sensor, SystemOtf};
 
 /// |H| below which the transfer function is "negligible" for the auto noise rule.
 pub const NEGLIGIBLE_H: f64 = 0.02;
@@ -104,9 +104,9 @@ impl SensorTransfer {
     /// Resolves the cascade of `sensor` and its spectral weights. The reference
     /// temperature is 300 K for a sensor whose response-weighted mean wavelength lies
     /// beyond 3 µm (a thermal scene) and 5772 K (sunlight) otherwise.
-    pub fn new(sensor: &SensorConfig) -> Result<Self> {
-        let otf = SystemOtf::new(sensor)?;
-        let response = sensor.spectral_response()?;
+    pub fn new(sensor: &Sensor) -> Result<Self> {
+        let otf = sensor.otf().clone();
+        let response = sensor.response();
         let (lo, hi) = response.support_um();
         if !(lo.is_finite() && hi.is_finite() && hi > lo) {
             return Err(Error::param(
