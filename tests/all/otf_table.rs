@@ -165,7 +165,8 @@ fn engine_grid_otf_matches_direct_cascade() {
     let s = sensor(&o);
     // k = 3 scene samples per detector pixel.
     let c = cube(12, 72, 90, s.ifov_rad() / 3.0);
-    let imager = Imager::new(&s, &c.meta, &c.meta.geometry.unwrap(), 1e-4).unwrap();
+    let resolved = eoir::sensor::Sensor::build(&s).unwrap();
+    let imager = Imager::new(&resolved, &c.meta, &c.meta.geometry.unwrap(), 1e-4).unwrap();
     let otf = imager.otf();
     assert_eq!(otf.components().len(), 9);
     let grid = imager.frequency_grid().clone();
@@ -224,6 +225,7 @@ fn no_aperture_term_passes_beyond_the_cutoff() {
 fn one_and_two_threads_give_identical_output() {
     let s = sensor(&cases()[3]);
     let c = cube(9, 75, 93, s.ifov_rad() / 3.0);
+    let resolved = eoir::sensor::Sensor::build(&s).unwrap();
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -231,7 +233,7 @@ fn one_and_two_threads_give_identical_output() {
             .unwrap();
         pool.install(|| {
             let imager = Imager::new(
-                &s,
+                &resolved,
                 &c.meta,
                 &c.meta.geometry.unwrap(),
                 DEFAULT_WRAP_TOLERANCE,
