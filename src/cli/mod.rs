@@ -2,7 +2,9 @@
 
 use anyhow::{bail, Context, Result};
 
+pub mod edge_mtf;
 pub mod mtf;
+pub mod restore;
 pub mod run;
 pub mod sensors;
 

@@ -12,14 +12,19 @@
 //! - [`netd`]: analytic and measured noise-equivalent temperature difference.
 //! - [`temperature`]: DN ↔ radiance calibration and apparent-temperature images,
 //!   docs/design.md §4.9.
+//! - [`wiener`]: Wiener restoration with the sensor's own transfer function on the
+//!   detector grid (FOI report eq. 3.6).
+//! - [`edge_mtf`]: ISO 12233 slanted-edge MTF measurement.
 //!
 //! Frames stored as integers (`Array2<u16>` from an ADC) are converted with [`to_f64`].
 
 pub mod bad_pixels;
+pub mod edge_mtf;
 pub mod netd;
 pub mod nuc;
 pub mod photon_transfer;
 pub mod temperature;
+pub mod wiener;
 
 use ndarray::{Array2, ArrayView2, ArrayView3, Axis};
 
