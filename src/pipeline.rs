@@ -278,6 +278,12 @@ pub fn run(
         });
     }
     let instance = instance.ok_or_else(|| Error::OutOfRange("no frame was exposed".into()))?;
+    // Readers learn some things only while reading (e.g. `data ignore value` pixels).
+    for w in reader.warnings() {
+        if !warnings.contains(&w) {
+            warnings.push(w);
+        }
+    }
     // The way back: calibrate through the same sensor instance, then invert.
     let t_cal = Instant::now();
     let mut calibration_report = serde_json::Value::Null;
@@ -355,6 +361,7 @@ pub fn run(
             "cols": meta.cols,
             "frames": n_frames,
             "units": meta.units.as_str(),
+            "units_source": reader.units_source(),
             "fov_deg": [geometry.fov_x_deg, geometry.fov_y_deg],
         },
         "sampling": {

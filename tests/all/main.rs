@@ -21,3 +21,4 @@ mod radiometry;
 mod scenes;
 mod sensor_config;
 mod spectrum;
+mod third_party;
