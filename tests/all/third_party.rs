@@ -9,7 +9,7 @@ use std::process::Command;
 use eoir::io::{self, ReadOptions};
 use eoir::pipeline::{self, RunOptions};
 use eoir::scene::RadianceUnits;
-use eoir::sensor::presets;
+use eoir::sensor::{presets, Sensor};
 
 /// The fixtures' field of view as make_fixtures.py prints it (44 x 36 samples of 120 µrad).
 const FOV_DEG: [f64; 2] = [0.30252171582907467, 0.24751776749651563];
@@ -30,12 +30,13 @@ fn fixture(name: &str) -> PathBuf {
 }
 
 /// MultimIR with a 16 x 20 detector: 4.8 x 3.84 mrad, inside the fixtures' 5.28 x 4.32.
-fn small_sensor() -> eoir::sensor::SensorConfig {
+fn small_sensor() -> Sensor {
     presets::load(
         "multimir",
         &[],
         &["detector.rows=16".into(), "detector.cols=20".into()],
     )
+    .and_then(|c| Sensor::build(&c))
     .unwrap()
 }
 
@@ -168,10 +169,7 @@ fn spectral_exr_without_unit_statement_follows_the_channel_rule() {
     for (x, y) in ea.iter().zip(eb.iter()) {
         assert!(((x - y) / y).abs() < 1e-3, "{x} vs {y}");
     }
-    assert_eq!(
-        a.report["input"]["units_source"].as_str(),
-        Some(r.units_source().as_str())
-    );
+    assert_eq!(a.report.input.units_source, r.units_source());
 }
 
 #[test]
