@@ -9,12 +9,15 @@ use std::f64::consts::PI;
 use crate::error::{require_non_negative, require_positive, Error, Result};
 
 /// Fried parameter r0 (m) of a horizontal path with constant Cn² (m^-2/3), spherical wave
-/// (docs/design.md §4.7): `r0 = 0.185 [8 λ² / (3 R Cn²)]^{3/5}`.
+/// (docs/design.md §4.7): `r0 = [0.423 k² Cn² R · 3/8]^{−3/5}`, k = 2π/λ.
 ///
-/// This is the spherical-wave form `[0.423 k² Cn² R · 3/8]^{−3/5}` (k = 2π/λ; 3/8 is
-/// `∫₀¹ x^{5/3} dx`, the path weight) with its coefficient rounded: unrounded it reads
-/// `(0.423 · 4π²)^{−3/5} = 0.18466` in front of `[8λ²/(3RCn²)]^{3/5}`, so this result is
-/// 0.18 % above what [`SlantPath::fried_r0`] gives for a horizontal path.
+/// This is the general spherical-wave form `r0 = [0.423 k² ∫₀^R Cn²(z) (z/R)^{5/3} dz]^{−3/5}`
+/// (Fried 1967; Andrews & Phillips, *Laser Beam Propagation through Random Media*, 2nd ed.,
+/// §6.4, with z measured from the source) for a constant Cn², where the path weight
+/// integrates to `∫₀¹ x^{5/3} dx = 3/8`. The same constant 0.423 is used by
+/// [`fried_r0_from_weighted_cn2`] for slant paths, so a slant path between equal heights
+/// gives exactly this r0. (The often printed `0.185 [8λ²/(3 R Cn²)]^{3/5}` is this form
+/// with `(0.423·4π²)^{−3/5} = 0.18466` rounded up, 0.18 % larger.)
 ///
 /// # Errors
 /// [`Error::InvalidParameter`] unless `wavelength_m`, `range_m` and `cn2_m_minus_2_3` are
@@ -23,8 +26,21 @@ pub fn fried_r0_horizontal(wavelength_m: f64, range_m: f64, cn2_m_minus_2_3: f64
     let lambda = require_positive("wavelength_m", wavelength_m)?;
     let range = require_positive("range_m", range_m)?;
     let cn2 = require_positive("cn2_m_minus_2_3", cn2_m_minus_2_3)?;
-    Ok(0.185 * (8.0 * lambda * lambda / (3.0 * range * cn2)).powf(0.6))
+    Ok(fried_r0_from_weighted_cn2(
+        lambda,
+        cn2 * range * SPHERICAL_WAVE_PATH_WEIGHT,
+    ))
 }
+
+/// `∫₀¹ x^{5/3} dx = 3/8`: the spherical-wave path weight of a constant Cn² profile.
+pub const SPHERICAL_WAVE_PATH_WEIGHT: f64 = 3.0 / 8.0;
+
+/// The constant of the Fried parameter, `r0 = [FRIED_CONSTANT · k² ∫Cn² w dz]^{−3/5}`:
+/// 0.423 ≈ 2.91/6.88, from equating the wave structure function
+/// `D(ρ) = 2.91 k² ρ^{5/3} ∫Cn² w dz` to Fried's `6.88 (ρ/r0)^{5/3}` (Fried 1967; Andrews &
+/// Phillips, *Laser Beam Propagation through Random Media*, 2nd ed., 2005, ch. 6). One
+/// constant for horizontal and slant paths.
+pub const FRIED_CONSTANT: f64 = 0.423;
 
 /// Which end of a slant path the sensor is at.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -342,7 +358,7 @@ fn gauss_kronrod_adaptive(f: impl Fn(f64) -> f64, a: f64, b: f64, rel_tol: f64) 
 /// reused for every wavelength). Returns +∞ for a zero integral (no turbulence).
 pub fn fried_r0_from_weighted_cn2(wavelength_m: f64, weighted_cn2_m_1_3: f64) -> f64 {
     let k = 2.0 * PI / wavelength_m;
-    (0.423 * k * k * weighted_cn2_m_1_3).powf(-0.6)
+    (FRIED_CONSTANT * k * k * weighted_cn2_m_1_3).powf(-0.6)
 }
 
 #[cfg(test)]

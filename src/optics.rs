@@ -139,7 +139,12 @@ pub fn defocus(x: f64, w020_waves: f64) -> f64 {
     if x > 1.0 {
         return 0.0;
     }
-    let a = 8.0 * PI * w020_waves * x * (1.0 - x);
+    jinc(8.0 * PI * w020_waves * x * (1.0 - x))
+}
+
+/// The Airy amplitude `2 J1(a)/a` (1 at `a = 0`; J1 from `libm::j1`), the factor of
+/// [`defocus`] as a function of its argument `a = 8π W020 X(1 − X)`.
+pub fn jinc(a: f64) -> f64 {
     if a.abs() < 1e-6 {
         // Series 2J1(a)/a = 1 − a²/8 + …; avoids 0/0 at a = 0.
         1.0 - a * a / 8.0

@@ -25,7 +25,7 @@ use eoir::calibration::CalibrationOptions;
 use eoir::io::CubeReader;
 use eoir::pipeline::{self, RunOptions};
 use eoir::scene::{synthetic, Cube, CubeMeta, Geometry, RadianceUnits};
-use eoir::sensor::{otf::SystemOtf, presets, SensorConfig};
+use eoir::sensor::{presets, Sensor, SensorConfig};
 
 /// Library error → Python exception, keeping the library's message.
 fn to_py(e: eoir::Error) -> PyErr {
@@ -63,7 +63,9 @@ fn detached<T: Send>(py: Python<'_>, f: impl FnOnce() -> eoir::Result<T> + Send)
 /// `eoir.load_sensor`.
 #[pyclass(frozen, name = "Sensor", module = "eoir._eoir")]
 struct PySensor {
-    inner: SensorConfig,
+    /// Resolved once (spectra sampled, transfer functions and detector model built), then
+    /// shared by every run.
+    inner: Sensor,
 }
 
 #[pymethods]
@@ -151,7 +153,7 @@ impl PySensor {
     /// Whether the response reaches beyond 3 µm (radiance/temperature products exist).
     #[getter]
     fn thermal(&self) -> bool {
-        pipeline::is_thermal(&self.inner)
+        self.inner.is_thermal()
     }
     /// Response-weighted mean wavelength, µm.
     #[getter]
@@ -161,21 +163,18 @@ impl PySensor {
     /// Support of the spectral response (lowest, highest wavelength), µm.
     #[getter]
     fn band_um(&self) -> PyResult<(f64, f64)> {
-        guarded(|| Ok(self.inner.spectral_response()?.support_um()))
+        guarded(|| Ok(self.inner.response().support_um()))
     }
     /// Whether the conversion gain comes from the imaged scene (`[detector.auto_gain]
     /// reference = "scene_mean"`): then the first frame of each run sets it.
     #[getter]
     fn gain_from_scene(&self) -> PyResult<bool> {
-        guarded(|| {
-            let model = eoir::detector::DetectorModel::from_config(&self.inner)?;
-            Ok(model.scene_mean_gain_fraction(&self.inner).is_some())
-        })
+        guarded(|| Ok(self.inner.detector().scene_mean_gain_fraction().is_some()))
     }
     /// Problems worth knowing about (assumed values, odd combinations).
     #[getter]
     fn warnings(&self) -> Vec<String> {
-        self.inner.warnings()
+        self.inner.warnings().to_vec()
     }
     fn __repr__(&self) -> String {
         let (h, v) = self.inner.fov_deg();
@@ -191,7 +190,7 @@ impl PySensor {
         )
     }
     fn __eq__(&self, other: PyRef<'_, PySensor>) -> bool {
-        self.inner == other.inner
+        self.inner.config() == other.inner.config()
     }
     /// Pickling (Dask workers): the resolved TOML and the directory relative paths in it
     /// are resolved against.
@@ -216,7 +215,8 @@ fn load_sensor(
     options: Vec<String>,
     overrides: Vec<String>,
 ) -> PyResult<PySensor> {
-    guarded(|| presets::load(name_or_path, &options, &overrides)).map(|inner| PySensor { inner })
+    guarded(|| Sensor::build(&presets::load(name_or_path, &options, &overrides)?))
+        .map(|inner| PySensor { inner })
 }
 
 /// A sensor from resolved TOML text (`Sensor.to_toml()`); `base_dir` resolves relative
@@ -224,8 +224,15 @@ fn load_sensor(
 #[pyfunction]
 #[pyo3(signature = (text, base_dir=".".to_string(), source="sensor TOML".to_string()))]
 fn sensor_from_toml(text: &str, base_dir: String, source: String) -> PyResult<PySensor> {
-    guarded(|| SensorConfig::from_toml_str(text, &source, PathBuf::from(base_dir), &[]))
-        .map(|inner| PySensor { inner })
+    guarded(|| {
+        Sensor::build(&SensorConfig::from_toml_str(
+            text,
+            &source,
+            PathBuf::from(base_dir),
+            &[],
+        )?)
+    })
+    .map(|inner| PySensor { inner })
 }
 
 /// The built-in presets: name, description, options `{name: [values]}` and defaults.
@@ -567,7 +574,7 @@ fn mtf<'py>(
                 "finite frequencies",
             ));
         }
-        let otf = SystemOtf::new(s)?;
+        let otf = s.otf();
         let mut columns: Vec<(String, Vec<f64>)> = otf
             .components()
             .iter()

@@ -261,6 +261,31 @@ impl SystemOtf {
         }
     }
 
+    /// Defocus edge wavefront error W020 (waves) at a wavelength, if defocus is enabled:
+    /// the configured value, or `δz / (8 N² λ)` for a focus shift (DESIGN.md §4.4).
+    pub fn defocus_w020_waves(&self, wavelength_um: f64) -> Option<f64> {
+        match self.defocus? {
+            DefocusAmount::Waves(w) => Some(w),
+            DefocusAmount::FocusShift(z) => Some(optics::defocus_w020_from_focus_shift(
+                z,
+                self.f_number,
+                wavelength_um * 1e-6,
+            )),
+        }
+    }
+
+    /// Whether the defocus amount depends on wavelength (given as a focus shift, so
+    /// W020 ∝ 1/λ) rather than as a fixed number of waves.
+    pub fn defocus_is_chromatic(&self) -> bool {
+        matches!(self.defocus, Some(DefocusAmount::FocusShift(_)))
+    }
+
+    /// Aerosol particle radius a (m), if the aerosol component is enabled: its transfer
+    /// function depends on frequency through ρλ/a (DESIGN.md §4.8).
+    pub fn aerosol_particle_radius_m(&self) -> Option<f64> {
+        self.aerosol.as_ref().map(|a| a.particle_radius_m)
+    }
+
     /// Value of one component at angular frequency (fx, fy) cycles/rad and wavelength λ.
     /// A component that is not enabled evaluates to 1.
     pub fn component(&self, c: Component, fx: f64, fy: f64, wavelength_um: f64) -> f64 {
@@ -292,12 +317,9 @@ impl SystemOtf {
                     }
                     None => 0.0,
                 };
-                if x >= 1.0 {
-                    // Beyond the cutoff the diffraction term is 0; the factor is moot.
-                    1.0
-                } else {
-                    optics::defocus(x, w020)
-                }
+                // 0 beyond the cutoff D/λ (optics::defocus): no aperture term passes
+                // anything there, even with `[diffraction] enabled = false`.
+                optics::defocus(x, w020)
             }
             Component::Detector => optics::detector_footprint(
                 fx,

@@ -15,6 +15,7 @@ mod io_npy;
 mod io_raster;
 mod motion;
 mod optics;
+mod otf_table;
 mod presets;
 mod presets_run;
 mod processing;
