@@ -89,6 +89,9 @@ pub struct InputReport {
     pub frames: usize,
     /// Radiance units of the input.
     pub units: String,
+    /// Where the units came from: `override: …`, `stated: <key> = <value>` or
+    /// `assumed: <the reader's documented rule>` ([`crate::io::CubeReader::units_source`]).
+    pub units_source: String,
     /// Scene field of view (horizontal, vertical), degrees.
     pub fov_deg: [f64; 2],
 }
@@ -311,6 +314,7 @@ impl RunReport {
                 cols: f.meta.cols,
                 frames: f.frames,
                 units: f.meta.units.as_str().to_string(),
+                units_source: String::new(),
                 fov_deg: [f.geometry.fov_x_deg, f.geometry.fov_y_deg],
             },
             sampling: SamplingReport {

@@ -67,9 +67,13 @@ pub struct RunArgs {
     /// OUTDIR/channel-<value>/ and write a false-colour composite OUTDIR/composite.png.
     #[arg(long)]
     composite: bool,
-    /// Scene field of view `H,V` in degrees, if the input file does not give one.
+    /// Scene field of view `H,V` in degrees; wins over any field of view in the file.
     #[arg(long, value_name = "H,V")]
     fov_deg: Option<String>,
+    /// Radiance units of the input, overriding what the file states, e.g.
+    /// `"W m-2 sr-1 nm-1"`, `"uW cm-2 sr-1 nm-1"` (AVIRIS), `"W/(m2 sr um)"`.
+    #[arg(long, value_name = "UNITS")]
+    radiance_units: Option<String>,
     /// No progress bar or summary.
     #[arg(long)]
     quiet: bool,
@@ -169,9 +173,10 @@ fn run_file(
     input: &Path,
     output: &Path,
     mut options: RunOptions,
+    read: &eoir::io::ReadOptions,
     quiet: bool,
 ) -> Result<pipeline::RunOutput> {
-    let mut reader = eoir::io::open(input)?;
+    let mut reader = eoir::io::open_with(input, read)?;
     let pb = progress_bar(quiet, "imaging");
     options.input_name = input.display().to_string();
     let out = pipeline::run(sensor, reader.as_mut(), &options, |done, total| {
@@ -325,6 +330,9 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
         None => None,
     };
+    let read = eoir::io::ReadOptions {
+        radiance_units: args.radiance_units.clone(),
+    };
     let options = RunOptions {
         seed: args.seed,
         geometry,
@@ -334,7 +342,14 @@ pub fn run(args: RunArgs) -> Result<()> {
     };
     if !args.composite {
         let sensor = args.sensor.load()?;
-        run_file(&sensor, &args.input, &args.output, options, args.quiet)?;
+        run_file(
+            &sensor,
+            &args.input,
+            &args.output,
+            options,
+            &read,
+            args.quiet,
+        )?;
         return Ok(());
     }
     let info = presets::list()
@@ -388,6 +403,7 @@ pub fn run(args: RunArgs) -> Result<()> {
             &args.input,
             &args.output.join(format!("channel-{ch}")),
             options.clone(),
+            &read,
             args.quiet,
         )?;
         if shared_gain.is_none() {
@@ -456,6 +472,7 @@ pub fn demo(args: DemoArgs) -> Result<()> {
             seed: args.seed,
             ..Default::default()
         },
+        &eoir::io::ReadOptions::default(),
         args.quiet,
     )?;
     Ok(())

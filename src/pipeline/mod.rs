@@ -149,6 +149,16 @@ fn input_geometry(options: &RunOptions, meta: &CubeMeta) -> Result<Geometry> {
     })
 }
 
+/// Adds the reader's warnings that appeared while reading (e.g. `data ignore value`
+/// pixels counted band by band) to those taken when it was opened.
+fn add_late_warnings(reader: &dyn CubeReader, warnings: &mut Vec<String>) {
+    for w in reader.warnings() {
+        if !warnings.contains(&w) {
+            warnings.push(w);
+        }
+    }
+}
+
 /// Runs the chain on every frame of `reader` (a static input is imaged once and exposed
 /// `options.frames` times). Nothing is written: call [`RunOutput::write`].
 /// `progress(done, total)` is called after each band of each frame.
@@ -201,6 +211,7 @@ pub fn run(
         });
     }
     let exposure = exposure.ok_or_else(|| Error::OutOfRange("no frame was exposed".into()))?;
+    add_late_warnings(reader, &mut warnings);
     let t_cal = Instant::now();
     let calibration = options.calibration.as_ref();
     let calibration =
@@ -213,7 +224,7 @@ pub fn run(
             CalibrationOutcome::Skipped => None,
         };
     let calibration_s = t_cal.elapsed().as_secs_f64();
-    let report = RunReport::assemble(RunFacts {
+    let mut report = RunReport::assemble(RunFacts {
         sensor,
         model: exposure.model(),
         seed: options.seed,
@@ -233,6 +244,7 @@ pub fn run(
         calibration_s,
         total_s: t_start.elapsed().as_secs_f64(),
     });
+    report.input.units_source = reader.units_source();
     Ok(RunOutput {
         frames,
         sensor: sensor.config().clone(),

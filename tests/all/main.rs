@@ -26,3 +26,4 @@ mod scenes;
 mod sensor_config;
 mod sequence_pieces;
 mod spectrum;
+mod third_party;
