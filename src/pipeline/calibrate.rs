@@ -33,6 +33,21 @@ pub enum CalibrationOutcome {
     Failed(String),
 }
 
+impl CalibrationOutcome {
+    /// The report section of a successful calibration; a failure's warning is appended to
+    /// `warnings`.
+    pub fn into_report(self, warnings: &mut Vec<String>) -> Option<CalibrationReport> {
+        match self {
+            CalibrationOutcome::Done(report) => Some(*report),
+            CalibrationOutcome::Failed(warning) => {
+                warnings.push(warning);
+                None
+            }
+            CalibrationOutcome::Skipped => None,
+        }
+    }
+}
+
 /// Calibrates `exposure`'s instance with `options` (when given and the sensor is thermal)
 /// and fills `radiance` and `temperature` of every frame.
 ///

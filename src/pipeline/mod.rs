@@ -34,7 +34,6 @@ use crate::report::{RunFacts, RunReport};
 use crate::scene::{CubeMeta, Geometry};
 use crate::sensor::{Sensor, SensorConfig};
 
-use calibrate::CalibrationOutcome;
 use expose::Exposure;
 use image::ImagingStage;
 
@@ -159,6 +158,33 @@ fn add_late_warnings(reader: &dyn CubeReader, warnings: &mut Vec<String>) {
     }
 }
 
+/// Frames a run produces: every frame of a sequence, or `requested` (at least 1) exposures
+/// of a static (single-frame) input.
+fn frame_count(input_frames: usize, requested: usize) -> usize {
+    if input_frames == 1 {
+        requested.max(1)
+    } else {
+        input_frames
+    }
+}
+
+impl FrameProducts {
+    /// A frame before calibration: mean electrons, DN and (CFA sensors) the colour image.
+    fn raw(
+        electrons_mean: &Array2<f64>,
+        dn: Array2<u16>,
+        rgb: Option<ndarray::Array3<u8>>,
+    ) -> Self {
+        FrameProducts {
+            electrons_mean: electrons_mean.mapv(|v| v as f32),
+            dn,
+            rgb,
+            radiance: None,
+            temperature: None,
+        }
+    }
+}
+
 /// Runs the chain on every frame of `reader` (a static input is imaged once and exposed
 /// `options.frames` times). Nothing is written: call [`RunOutput::write`].
 /// `progress(done, total)` is called after each band of each frame.
@@ -177,11 +203,7 @@ pub fn run(
     warnings.extend(imaging.sampling().warnings.iter().cloned());
     warnings.extend(sensor.detector().warnings().iter().cloned());
     let (input_frames, active) = (reader.frames(), imaging.bands_used());
-    let n_frames = if input_frames == 1 {
-        options.frames.max(1)
-    } else {
-        input_frames
-    };
+    let n_frames = frame_count(input_frames, options.frames);
     let (mut frames, mut detector_s) = (Vec::with_capacity(n_frames), 0.0);
     let mut mean: Option<Array2<f64>> = None;
     let mut exposure: Option<Exposure> = None;
@@ -202,27 +224,14 @@ pub fn run(
         let dn = exposure.expose(e, options.first_frame + f as u64)?;
         detector_s += t0.elapsed().as_secs_f64();
         let rgb = colour::colour_image(sensor, exposure.model(), &dn);
-        frames.push(FrameProducts {
-            electrons_mean: e.mapv(|v| v as f32),
-            dn,
-            rgb,
-            radiance: None,
-            temperature: None,
-        });
+        frames.push(FrameProducts::raw(e, dn, rgb));
     }
     let exposure = exposure.ok_or_else(|| Error::OutOfRange("no frame was exposed".into()))?;
     add_late_warnings(reader, &mut warnings);
     let t_cal = Instant::now();
     let calibration = options.calibration.as_ref();
-    let calibration =
-        match calibrate::calibrate_frames(sensor, &exposure, calibration, &mut frames)? {
-            CalibrationOutcome::Done(report) => Some(*report),
-            CalibrationOutcome::Failed(warning) => {
-                warnings.push(warning);
-                None
-            }
-            CalibrationOutcome::Skipped => None,
-        };
+    let outcome = calibrate::calibrate_frames(sensor, &exposure, calibration, &mut frames)?;
+    let calibration = outcome.into_report(&mut warnings);
     let calibration_s = t_cal.elapsed().as_secs_f64();
     let mut report = RunReport::assemble(RunFacts {
         sensor,

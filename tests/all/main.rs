@@ -1,5 +1,6 @@
 //! eoir's integration tests, one crate (one link of the library) with a module per area.
 
+mod architecture;
 mod atmosphere;
 mod calibration;
 mod cfa;
