@@ -26,7 +26,8 @@
 //!    i.e. the blackbody radiance weighted by the normalised spectral response (peak 1), so
 //!    that for a flat-topped band it is the radiance within the band.
 //!
-//! The DN table covers `lut_range_k` trimmed to where DN* rises strictly: above the
+//! The radiance table covers the whole `lut_range_k` (radiance is not limited by the
+//! ADC). The DN table covers `lut_range_k` trimmed to where DN* rises strictly: above the
 //! temperature at which the ideal pixel reaches full scale (ADC or full well) DN* is flat
 //! and no temperature can be recovered. Corrected values outside the table become NaN and
 //! are counted; raw DN at the ADC limits (0 or 2^bits − 1) are clipped measurements and
@@ -412,7 +413,10 @@ impl Calibration {
         let c1 = chain.clone();
         let dn_lut = TemperatureLut::new(move |t| c1.ideal_dn(t), t_lo, top)?;
         let c2 = chain.clone();
-        let radiance_lut = TemperatureLut::new(move |t| c2.band_radiance(t), t_lo, top)?;
+        // L_band(T) does not depend on the ADC: the radiance table spans the whole range,
+        // so an in-band radiance image (`eoir temperature` on f32 radiance) inverts above
+        // the temperature where the DN saturate.
+        let radiance_lut = TemperatureLut::new(move |t| c2.band_radiance(t), t_lo, t_hi)?;
 
         Ok(Calibration {
             chain,

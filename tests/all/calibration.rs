@@ -306,3 +306,26 @@ fn cos4_rolloff_is_flattened_by_the_nuc() {
     assert!((mt - 300.0).abs() < 0.05, "mean {mt}");
     assert!((corner - 300.0).abs() < 5.0 * netd, "corners {corner}");
 }
+
+/// The radiance table is not trimmed where the DN saturate: default MultimIR DN saturate
+/// near 323 K, yet an in-band radiance of a 400 K blackbody inverts to 400 K (issue 12).
+#[test]
+fn radiance_lut_is_not_limited_by_the_adc() {
+    let s = presets::load(
+        "multimir",
+        &[],
+        &["detector.rows=8".into(), "detector.cols=8".into()],
+    )
+    .and_then(|c| Sensor::build(&c))
+    .unwrap();
+    let model = s.detector().clone();
+    let inst = DetectorInstance::new(&model, 1).unwrap();
+    let cal = Calibration::new(&s, &model, &inst, &CalibrationOptions::default()).unwrap();
+    let (_, dn_top) = cal.lut_range_k();
+    assert!(dn_top < 400.0, "DN table top {dn_top} K");
+    for t in [350.0, 400.0, 480.0] {
+        let l = cal.band_radiance(t);
+        let back = cal.radiance_lut().temperature_or_nan(l);
+        assert!((back - t).abs() < 1e-3, "{t} K -> {back} K");
+    }
+}
