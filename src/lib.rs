@@ -19,6 +19,8 @@
 //! - [`sensor`]: the sensor configuration schema, validation and the system OTF cascade.
 //! - [`plot`]: PNG line plots with an embedded font (no system font libraries).
 //! - [`report`]: figures of merit (MTF curves, …) and their plots.
+//! - [`display`]: display stretches and colour maps for the pictures a person looks at.
+//! - [`report_html`]: the pictures of a run and the self-contained `report.html`.
 //! - [`imaging`]: the engine — spectral weights, frequency-domain accumulation, detector sampling.
 //! - [`pipeline`]: the whole chain top to bottom, and the products it writes.
 //! - [`scene`]: the spectral radiance cube type and its geometry.
@@ -46,6 +48,7 @@ pub mod calibration;
 pub mod cfa;
 pub mod constants;
 pub mod detector;
+pub mod display;
 pub mod error;
 pub mod imaging;
 pub mod io;
@@ -56,6 +59,7 @@ pub mod plot;
 pub mod processing;
 pub mod radiometry;
 pub mod report;
+pub mod report_html;
 pub mod scene;
 pub mod sensor;
 pub mod spectrum;

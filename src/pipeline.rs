@@ -295,12 +295,21 @@ pub fn run(
                 let temps = cal.temperatures_k();
                 let t_check = 0.5 * (temps[0] + temps[temps.len() - 1]) + 0.37;
                 let (raw_nu, nuc_nu) = cal.residual_nonuniformity(&instance, t_check)?;
+                // The temporal noise left in the M-frame average, σ_t / (μ √M): the floor
+                // under both values (without fixed pattern the raw value sits on it and the
+                // NUC adds its own fit noise).
+                let nu_floor = model.temporal_noise_dn(cal.blackbody_electrons(t_check)?)
+                    / (opts.frames_per_level.max(1) as f64).sqrt()
+                    / cal.ideal_dn(t_check);
                 calibration_report = json!({
                     "nuc_degree": opts.degree,
                     "temperatures_k": temps,
                     "frames_per_level": opts.frames_per_level,
                     "bad_pixels": cal.bad_pixels().count(),
-                    "residual_nonuniformity": {"at_k": t_check, "raw": raw_nu, "corrected": nuc_nu},
+                    "residual_nonuniformity": {
+                        "at_k": t_check, "raw": raw_nu, "corrected": nuc_nu, "temporal_floor": nu_floor,
+                        "measured": "spatial σ/μ of a blackbody flat field averaged over frames_per_level frames, before and after NUC and bad-pixel replacement; temporal_floor = σ_t/(μ√M) is the temporal noise left in that average",
+                    },
                     "netd_analytic_k_at_300k": cal.netd_analytic_k(300.0).ok(),
                     "netd_measured_k_at_300k": crate::calibration::measured_netd(
                         sensor, &instance, 300.0, 0.25, 16, Some(cal.bad_pixels()),
@@ -432,7 +441,7 @@ impl RunOutput {
     }
 
     /// Writes the products into `dir` (created if needed), each file atomically:
-    /// `dn.tiff` (u16), `dn.png` (16-bit grey), `electrons_mean.tiff` and
+    /// `dn.tiff` (u16), `dn.png` (8-bit display, [`crate::display::dn_display`]), `electrons_mean.tiff` and
     /// `electrons_mean.exr` (f32), `config.toml` (the resolved sensor), `report.json`, and
     /// with the `hdf5` feature `products.h5` holding every product. A sequence writes
     /// `frame_NNNN_` prefixed DN and electron files. Returns the paths written.
@@ -450,7 +459,10 @@ impl RunOutput {
             raster::write_tiff_u16(&p, f.dn.view())?;
             written.push(p);
             let p = dir.join(format!("{prefix}dn.png"));
-            raster::write_png_u16(&p, f.dn.view())?;
+            let (grey, _) = crate::display::dn_display(f.dn.view());
+            let samples: Vec<u8> = grey.iter().copied().collect();
+            let png = crate::display::encode_png(grey.ncols(), grey.nrows(), 1, &samples)?;
+            crate::display::write_png_bytes(&p, &png)?;
             written.push(p);
             let p = dir.join(format!("{prefix}electrons_mean.tiff"));
             raster::write_tiff_f32(&p, f.electrons_mean.view())?;
@@ -560,6 +572,7 @@ impl RunOutput {
             .map_err(|e| Error::format(&p, e.to_string()))?;
         crate::io::atomic_write(&p, |w| crate::io::write_all(w, text.as_bytes(), &p))?;
         written.push(p);
+        written.extend(crate::report_html::write(self, dir)?);
         Ok(written)
     }
 }

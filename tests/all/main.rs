@@ -1,6 +1,7 @@
 //! eoir's integration tests, one crate (one link of the library) with a module per area.
 
 mod atmosphere;
+mod browser;
 mod calibration;
 mod cfa;
 mod cli;
@@ -17,6 +18,7 @@ mod optics;
 mod presets;
 mod presets_run;
 mod processing;
+mod products;
 mod radiometry;
 mod scenes;
 mod sensor_config;
