@@ -90,9 +90,10 @@ impl RunPictures {
             _ => None,
         };
         let histogram = dn_histogram(out, &dn_stretch)?;
-        let mtf = match crate::report::mean_wavelength_um(&out.sensor) {
+        let sensor = crate::sensor::Sensor::build(&out.sensor)?;
+        let mtf = match crate::report::mean_wavelength_um(&sensor) {
             Ok(l) => {
-                let curves = MtfCurves::compute(&out.sensor, l, None, 300)?;
+                let curves = MtfCurves::compute(&sensor, l, None, 300)?;
                 Some(Picture {
                     file_name: "mtf.png",
                     png: curves.render_png(&out.sensor.name)?,

@@ -3,6 +3,7 @@
 use anyhow::{bail, Context, Result};
 
 pub mod mtf;
+pub mod progress;
 pub mod run;
 pub mod sensors;
 

@@ -273,7 +273,8 @@ fn coarser_scene_warning_has_a_tolerance_and_enough_digits() {
             rows,
             cols,
         };
-        Sampling::new(&sensor, &meta, &g).unwrap().warnings
+        let built = eoir::sensor::Sensor::build(&sensor).unwrap();
+        Sampling::new(&built, &meta, &g).unwrap().warnings
     };
     // A field of view rounded in the fifth digit is not a coarser scene.
     assert!(warnings(0.99997).is_empty(), "{:?}", warnings(0.99997));
