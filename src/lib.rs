@@ -29,6 +29,8 @@
 //! - [`processing`]: NUC, bad pixels, NETD, photon transfer, temperature tables.
 //! - [`calibration`]: the way back from DN to radiance and apparent temperature.
 //! - [`report`]: the typed run report and figures of merit (MTF curves) with their plots.
+//! - [`display`]: display stretches and colour maps for the pictures a person looks at.
+//! - [`pipeline::report_html`]: the pictures of a run and the self-contained `report.html`.
 //! - [`pipeline`]: the whole chain, stage by stage, and the products it writes.
 //!
 //! ```no_run
@@ -55,6 +57,7 @@ pub mod calibration;
 pub mod cfa;
 pub mod constants;
 pub mod detector;
+pub mod display;
 pub mod error;
 pub mod imaging;
 pub mod io;
@@ -65,6 +68,7 @@ pub mod plot;
 pub mod processing;
 pub mod radiometry;
 pub mod report;
+
 pub mod scene;
 pub mod sensor;
 pub mod spectrum;

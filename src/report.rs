@@ -197,6 +197,12 @@ pub struct ResidualNonuniformity {
     pub raw: f64,
     /// σ/mean after NUC.
     pub corrected: f64,
+    /// The temporal noise left in the frame average, σ_t / (μ √M): the floor under both
+    /// values (without fixed pattern the raw value sits on it, and the NUC adds its own
+    /// fit noise).
+    pub temporal_floor: f64,
+    /// What is measured, in words.
+    pub measured: String,
 }
 
 /// `timings_s` of the report, seconds.
@@ -482,6 +488,12 @@ impl MtfCurves {
 
     /// Plots the curves as a PNG with the detector Nyquist frequency marked.
     pub fn write_png(&self, path: &Path, sensor_name: &str) -> Result<()> {
+        let bytes = self.render_png(sensor_name)?;
+        crate::display::write_png_bytes(path, &bytes)
+    }
+
+    /// The plot of [`MtfCurves::write_png`] as PNG bytes.
+    pub fn render_png(&self, sensor_name: &str) -> Result<Vec<u8>> {
         let title = format!(
             "{sensor_name}: transfer functions at {:.3} µm",
             self.wavelength_um
@@ -500,21 +512,18 @@ impl MtfCurves {
             .iter()
             .flat_map(|(_, v)| v.iter().copied())
             .fold(0.0f64, f64::min);
-        plot::write_line_plot(
-            path,
-            &LinePlot {
-                title: &title,
-                x_label: "spatial frequency (cycles/mrad)",
-                y_label: "transfer function",
-                series,
-                markers: vec![Marker {
-                    label: "Nyquist",
-                    x: self.nyquist_cy_per_mrad,
-                }],
-                y_range: Some((y_min.min(0.0) - 0.02, 1.05)),
-                size_px: (900, 600),
-            },
-        )
+        plot::render_line_plot(&LinePlot {
+            title: &title,
+            x_label: "spatial frequency (cycles/mrad)",
+            y_label: "transfer function",
+            series,
+            markers: vec![Marker {
+                label: "Nyquist",
+                x: self.nyquist_cy_per_mrad,
+            }],
+            y_range: Some((y_min.min(0.0) - 0.02, 1.05)),
+            size_px: (900, 600),
+        })
     }
 }
 

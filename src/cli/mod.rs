@@ -4,6 +4,7 @@ use anyhow::{bail, Context, Result};
 
 pub mod edge_mtf;
 pub mod mtf;
+pub mod progress;
 pub mod restore;
 pub mod run;
 pub mod sensors;

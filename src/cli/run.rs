@@ -1,10 +1,8 @@
 //! CLI glue for `eoir run`, `eoir demo` and `eoir scene`.
 
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use indicatif::{ProgressBar, ProgressStyle};
 
 use eoir::calibration::{Calibration, CalibrationOptions};
 use eoir::detector::DetectorInstance;
@@ -153,20 +151,6 @@ pub struct SceneArgs {
     angle_deg: f64,
 }
 
-fn progress_bar(quiet: bool, what: &str) -> Option<ProgressBar> {
-    if quiet || !std::io::stderr().is_terminal() {
-        return None;
-    }
-    let pb = ProgressBar::new(1);
-    if let Ok(style) =
-        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} bands ({elapsed})")
-    {
-        pb.set_style(style.progress_chars("=> "));
-    }
-    pb.set_message(what.to_string());
-    Some(pb)
-}
-
 /// Runs the input through the sensor, writing the products.
 fn run_file(
     sensor: &Sensor,
@@ -177,21 +161,29 @@ fn run_file(
     quiet: bool,
 ) -> Result<pipeline::RunOutput> {
     let mut reader = eoir::io::open_with(input, read)?;
-    let pb = progress_bar(quiet, "imaging");
+    // Calibration exposures: the NUC levels, the non-uniformity check, the measured NETD
+    // (two stacks), each of frames_per_level frames.
+    let calibration_exposures = match &options.calibration {
+        Some(c) if sensor.is_thermal() => {
+            ((c.temperatures_k.len() + 3) * c.frames_per_level) as u64
+        }
+        _ => 0,
+    };
+    let mut progress = crate::cli::progress::RunProgress::new(
+        quiet,
+        reader.frames().max(options.frames),
+        calibration_exposures,
+    );
     options.input_name = input.display().to_string();
     let out = pipeline::run(sensor, reader.as_mut(), &options, |done, total| {
-        if let Some(pb) = &pb {
-            pb.set_length(total as u64);
-            pb.set_position(done as u64);
-        }
+        progress.imaging(done, total)
     })?;
-    if let Some(pb) = pb {
-        pb.finish_and_clear();
-    }
+    progress.writing();
+    let written = out.write(output)?;
+    progress.finish();
     for w in &out.warnings {
         eprintln!("warning: {w}");
     }
-    let written = out.write(output)?;
     if !quiet {
         let r = &out.report;
         let opts = r

@@ -203,7 +203,9 @@ impl DetectorModel {
         if let Some(a) = &d.auto_gain {
             let (k, kind, e_ref) = model.auto_gain_for(d, inputs.response, inputs.camera, a)?;
             let e_total = e_ref + dark_e + background_e;
-            if e_total >= d.full_well_e {
+            // With `scene_mean` the full well only stands in until the scene is imaged
+            // ([`DetectorModel::set_gain_from_scene_mean`] checks the real mean).
+            if e_total >= d.full_well_e && kind != AutoGainReference::SceneMean {
                 model.warnings.push(format!(
                     "detector.auto_gain: the reference scene gives {e_total:.4e} e-, beyond the full well ({:.4e} e-); K is set for the full well",
                     d.full_well_e
@@ -310,6 +312,12 @@ impl DetectorModel {
     /// other auto-gain references).
     pub fn set_gain_from_scene_mean(&mut self, mean_signal_e: f64, fraction: f64) -> Result<()> {
         let e_total = mean_signal_e + self.dark_e + self.background_e;
+        if e_total >= self.full_well_e {
+            self.warnings.push(format!(
+                "detector.auto_gain: the scene mean gives {e_total:.4e} e-, beyond the full well ({:.4e} e-); K is set for the full well",
+                self.full_well_e
+            ));
+        }
         self.gain_dn_per_e = gain::gain_for(self, fraction, e_total)?;
         self.auto_gain_reference = Some((AutoGainReference::SceneMean, mean_signal_e));
         self.scene_gain_pending = None;

@@ -282,6 +282,12 @@ pub struct Sampling {
     pub warnings: Vec<String>,
 }
 
+/// Relative shortfall below one scene sample per detector pixel that counts as a coarser
+/// scene: 0.1 %. A scene sampled within this of the detector (e.g. 0.99997, a field of view
+/// rounded to 3 decimals) carries all the detail the detector resolves to within the
+/// rounding, so it is not worth a warning.
+pub const COARSER_TOLERANCE: f64 = 1e-3;
+
 impl Sampling {
     /// Relates a scene of `meta`'s size and `geometry` to the detector of `sensor`.
     pub fn new(sensor: &Sensor, meta: &CubeMeta, geometry: &Geometry) -> Result<Self> {
@@ -291,11 +297,10 @@ impl Sampling {
         let y = AxisSampling::new(meta.rows, dy, sensor.detector.rows, d, "vertical")?;
         let x = AxisSampling::new(meta.cols, dx, sensor.detector.cols, d, "horizontal")?;
         let mut warnings = Vec::new();
-        if x.ratio < 1.0 - 1e-9 || y.ratio < 1.0 - 1e-9 {
+        if x.ratio < 1.0 - COARSER_TOLERANCE || y.ratio < 1.0 - COARSER_TOLERANCE {
             warnings.push(format!(
-                "the scene is coarser than the detector (scene/detector sampling {:.3} x {:.3}): it lacks the detail the sensor could resolve",
-                1.0 / x.ratio,
-                1.0 / y.ratio
+                "the scene is coarser than the detector: {:.5} x {:.5} scene samples per detector pixel (x, y), fewer than 1: it lacks the detail the sensor could resolve",
+                x.ratio, y.ratio
             ));
         }
         let integer = x.integer_ratio().is_some() && y.integer_ratio().is_some();

@@ -82,6 +82,11 @@ pub fn calibrate_frames(
     let temps = cal.temperatures_k();
     let t_check = 0.5 * (temps[0] + temps[temps.len() - 1]) + CHECK_OFFSET_K;
     let (raw, corrected) = cal.residual_nonuniformity(instance, t_check)?;
+    let temporal_floor = exposure
+        .model()
+        .temporal_noise_dn(cal.blackbody_electrons(t_check)?)
+        / (opts.frames_per_level.max(1) as f64).sqrt()
+        / cal.ideal_dn(t_check);
     Ok(CalibrationOutcome::Done(Box::new(CalibrationReport {
         nuc_degree: opts.degree,
         temperatures_k: temps.to_vec(),
@@ -91,6 +96,8 @@ pub fn calibrate_frames(
             at_k: t_check,
             raw,
             corrected,
+            temporal_floor,
+            measured: "spatial σ/μ of a blackbody flat field averaged over frames_per_level frames, before and after NUC and bad-pixel replacement; temporal_floor = σ_t/(μ√M) is the temporal noise left in that average".to_string(),
         },
         netd_analytic_k_at_300k: cal.netd_analytic_k(NETD_AT_K).ok(),
         netd_measured_k_at_300k: measured_netd(

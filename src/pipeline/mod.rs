@@ -21,6 +21,7 @@ pub mod colour;
 pub mod expose;
 pub mod image;
 mod output;
+pub mod report_html;
 
 use std::time::Instant;
 
@@ -32,7 +33,7 @@ use crate::imaging::DEFAULT_WRAP_TOLERANCE;
 use crate::io::CubeReader;
 use crate::report::{RunFacts, RunReport};
 use crate::scene::{CubeMeta, Geometry};
-use crate::sensor::{Sensor, SensorConfig};
+use crate::sensor::Sensor;
 
 use expose::Exposure;
 use image::ImagingStage;
@@ -102,7 +103,7 @@ pub struct RunOutput {
     /// One entry per frame.
     pub frames: Vec<FrameProducts>,
     /// The sensor configuration as resolved (written as `config.toml`).
-    pub sensor: SensorConfig,
+    pub sensor: Sensor,
     /// Figures of merit, input summary and timings (written as `report.json`).
     pub report: RunReport,
     /// Warnings collected on the way.
@@ -148,10 +149,11 @@ fn input_geometry(options: &RunOptions, meta: &CubeMeta) -> Result<Geometry> {
     })
 }
 
-/// Adds the reader's warnings that appeared while reading (e.g. `data ignore value`
-/// pixels counted band by band) to those taken when it was opened.
-fn add_late_warnings(reader: &dyn CubeReader, warnings: &mut Vec<String>) {
-    for w in reader.warnings() {
+/// Adds the warnings that appear only while running: the reader's (e.g. `data ignore
+/// value` pixels counted band by band) and the exposure model's (a scene-mean auto gain
+/// warns only once the scene is known).
+fn add_late_warnings(reader: &dyn CubeReader, model: &[String], warnings: &mut Vec<String>) {
+    for w in reader.warnings().into_iter().chain(model.iter().cloned()) {
         if !warnings.contains(&w) {
             warnings.push(w);
         }
@@ -227,7 +229,7 @@ pub fn run(
         frames.push(FrameProducts::raw(e, dn, rgb));
     }
     let exposure = exposure.ok_or_else(|| Error::OutOfRange("no frame was exposed".into()))?;
-    add_late_warnings(reader, &mut warnings);
+    add_late_warnings(reader, exposure.model().warnings(), &mut warnings);
     let t_cal = Instant::now();
     let calibration = options.calibration.as_ref();
     let outcome = calibrate::calibrate_frames(sensor, &exposure, calibration, &mut frames)?;
@@ -256,7 +258,7 @@ pub fn run(
     report.input.units_source = reader.units_source();
     Ok(RunOutput {
         frames,
-        sensor: sensor.config().clone(),
+        sensor: sensor.clone(),
         report,
         warnings,
     })

@@ -31,7 +31,7 @@ impl RunOutput {
     }
 
     /// Writes the products into `dir` (created if needed), each file atomically:
-    /// `dn.tiff` (u16), `dn.png` (16-bit grey), `electrons_mean.tiff` and
+    /// `dn.tiff` (u16), `dn.png` (8-bit display, [`crate::display::dn_display`]), `electrons_mean.tiff` and
     /// `electrons_mean.exr` (f32), `config.toml` (the resolved sensor), `report.json`, and
     /// with the `hdf5` feature `products.h5` holding every product. A sequence writes
     /// `frame_NNNN_` prefixed DN and electron files. Returns the paths written.
@@ -49,7 +49,10 @@ impl RunOutput {
             raster::write_tiff_u16(&p, f.dn.view())?;
             written.push(p);
             let p = dir.join(format!("{prefix}dn.png"));
-            raster::write_png_u16(&p, f.dn.view())?;
+            let (grey, _) = crate::display::dn_display(f.dn.view());
+            let samples: Vec<u8> = grey.iter().copied().collect();
+            let png = crate::display::encode_png(grey.ncols(), grey.nrows(), 1, &samples)?;
+            crate::display::write_png_bytes(&p, &png)?;
             written.push(p);
             let p = dir.join(format!("{prefix}electrons_mean.tiff"));
             raster::write_tiff_f32(&p, f.electrons_mean.view())?;
@@ -159,6 +162,7 @@ impl RunOutput {
             .map_err(|e| Error::format(&p, e.to_string()))?;
         crate::io::atomic_write(&p, |w| crate::io::write_all(w, text.as_bytes(), &p))?;
         written.push(p);
+        written.extend(super::report_html::write(self, dir)?);
         Ok(written)
     }
 }

@@ -2,6 +2,7 @@
 
 mod architecture;
 mod atmosphere;
+mod browser;
 mod calibration;
 mod cfa;
 mod cli;
@@ -21,6 +22,7 @@ mod otf_table;
 mod presets;
 mod presets_run;
 mod processing;
+mod products;
 mod radiometry;
 mod restore;
 mod scenes;
