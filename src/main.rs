@@ -6,7 +6,7 @@ use clap::{Parser, Subcommand};
 
 mod cli;
 
-use cli::{mtf, run, sensors};
+use cli::{characterize, mtf, nuc, run, sensors};
 
 /// eoir — turns synthetic hyperspectral radiance into the imagery a real EO/IR camera records.
 #[derive(Debug, Parser)]
@@ -30,6 +30,10 @@ enum Command {
     Mtf(mtf::MtfArgs),
     /// List the built-in sensor presets, or print one fully resolved (`sensors show NAME`).
     Sensors(sensors::SensorsArgs),
+    /// EMVA 1288 characterisation of an acquisition set, or simulate one (`--simulate`).
+    Characterize(characterize::CharacterizeArgs),
+    /// Non-uniformity correction from blackbody frames: `nuc fit`, `nuc apply`.
+    Nuc(nuc::NucArgs),
 }
 
 fn main() -> ExitCode {
@@ -41,6 +45,8 @@ fn main() -> ExitCode {
         Command::Temperature(args) => run::temperature(args),
         Command::Mtf(args) => mtf::mtf(args),
         Command::Sensors(args) => sensors::sensors(args),
+        Command::Characterize(args) => characterize::characterize(args),
+        Command::Nuc(args) => nuc::nuc(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

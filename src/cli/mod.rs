@@ -2,7 +2,9 @@
 
 use anyhow::{bail, Context, Result};
 
+pub mod characterize;
 pub mod mtf;
+pub mod nuc;
 pub mod run;
 pub mod sensors;
 

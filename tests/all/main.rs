@@ -3,6 +3,7 @@
 mod atmosphere;
 mod calibration;
 mod cfa;
+mod characterize;
 mod cli;
 mod detector;
 mod imaging;
@@ -13,6 +14,7 @@ mod io_hdf5;
 mod io_npy;
 mod io_raster;
 mod motion;
+mod nuc_cli;
 mod optics;
 mod presets;
 mod presets_run;
