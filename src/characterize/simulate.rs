@@ -40,7 +40,7 @@ use crate::detector::{DetectorInstance, DetectorModel};
 use crate::error::{Error, Result};
 use crate::io::{atomic_write, raster, write_all};
 use crate::sensor::presets;
-use crate::sensor::SensorConfig;
+use crate::sensor::{Sensor, SensorConfig};
 
 /// Evenly spaced photon-transfer levels from dark to 90 % of saturation.
 pub const LEVELS_LINEAR: usize = 40;
@@ -110,6 +110,11 @@ impl Default for SimulateOptions {
             window: DEFAULT_WINDOW,
         }
     }
+}
+
+/// The resolved detector model of a configuration.
+fn model_of(config: &SensorConfig) -> Result<DetectorModel> {
+    Ok(Sensor::build(config)?.detector().clone())
 }
 
 /// λ₀ and η(λ₀)·τ_filter(λ₀): the maximum of the camera's response over a 1 nm grid.
@@ -200,9 +205,9 @@ pub fn simulate(sensor: &SensorConfig, dir: &Path, options: &SimulateOptions) ->
     );
     let t = config.detector.integration_time_s;
     // K from the sensor as configured at its own exposure time (auto-gain included).
-    let nominal = DetectorModel::from_config(&window_config(&config, win, t, None))?;
+    let nominal = model_of(&window_config(&config, win, t, None))?;
     let k = nominal.gain_dn_per_e();
-    let model = DetectorModel::from_config(&window_config(&config, win, t, Some(k)))?;
+    let model = model_of(&window_config(&config, win, t, Some(k)))?;
     let instance = DetectorInstance::new(&model, options.seed)?;
     let (wavelength_um, response) = peak_response(&config)?;
     let eta = response * config.detector.fill_factor();
@@ -270,7 +275,7 @@ pub fn simulate(sensor: &SensorConfig, dir: &Path, options: &SimulateOptions) ->
             let inst = if *f == 1.0 {
                 instance.clone()
             } else {
-                let m = DetectorModel::from_config(&window_config(&config, win, ti, Some(k)))?;
+                let m = model_of(&window_config(&config, win, ti, Some(k)))?;
                 DetectorInstance::new(&m, options.seed)?
             };
             write_series(&inst, "dark", &format!("d{i}"), round_ns(ti * 1e9), None, 2)?;

@@ -7,11 +7,11 @@ use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use eoir::calibration::{Calibration, CalibrationOptions};
-use eoir::detector::{DetectorInstance, DetectorModel};
+use eoir::detector::DetectorInstance;
 use eoir::pipeline::{self, RunOptions};
 use eoir::scene::synthetic::{self, SceneParams};
 use eoir::scene::Geometry;
-use eoir::sensor::{presets, SensorConfig};
+use eoir::sensor::{presets, Sensor, SensorConfig};
 
 /// How a command names its sensor: a file or preset, options and overrides.
 #[derive(Debug, Clone, clap::Args)]
@@ -28,10 +28,20 @@ pub struct SensorArgs {
 }
 
 impl SensorArgs {
-    /// Loads the sensor these arguments name.
-    pub fn load(&self) -> Result<SensorConfig> {
+    /// Loads the configuration of the sensor these arguments name.
+    pub fn load_config(&self) -> Result<SensorConfig> {
         Ok(presets::load(&self.sensor, &self.option, &self.set)?)
     }
+
+    /// Loads and resolves the sensor these arguments name.
+    pub fn load(&self) -> Result<Sensor> {
+        build(&self.load_config()?)
+    }
+}
+
+/// Resolves a sensor configuration (reads the files it refers to), naming it in errors.
+fn build(config: &SensorConfig) -> Result<Sensor> {
+    Sensor::build(config).with_context(|| format!("resolving sensor `{}`", config.name))
 }
 
 /// Arguments of `eoir run`.
@@ -155,7 +165,7 @@ fn progress_bar(quiet: bool, what: &str) -> Option<ProgressBar> {
 
 /// Runs the input through the sensor, writing the products.
 fn run_file(
-    sensor: &SensorConfig,
+    sensor: &Sensor,
     input: &Path,
     output: &Path,
     mut options: RunOptions,
@@ -179,41 +189,38 @@ fn run_file(
     let written = out.write(output)?;
     if !quiet {
         let r = &out.report;
-        let f = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
-        let opts = r["options"]
-            .as_object()
-            .map(|o| {
-                o.iter()
-                    .map(|(k, v)| format!("{k}={}", v.as_str().unwrap_or("")))
-                    .collect::<Vec<_>>()
-                    .join(" ")
-            })
-            .unwrap_or_default();
+        let opts = r
+            .options
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect::<Vec<_>>()
+            .join(" ");
+        let f = |v: Option<f64>| v.unwrap_or(f64::NAN);
         println!(
             "{} {opts} (seed {}): {} x {} px, F/{:.2}, IFOV {:.1} µrad, λF#/pitch {:.2}, MTF at Nyquist {:.3}",
             sensor.name,
-            r["seed"],
+            r.seed,
             sensor.detector.cols,
             sensor.detector.rows,
-            f(&r["optics"]["f_number"]),
-            f(&r["optics"]["ifov_urad"]),
-            f(&r["optics"]["lambda_f_number_over_pitch"]),
-            f(&r["optics"]["mtf_at_nyquist"]),
+            r.optics.f_number,
+            r.optics.ifov_urad,
+            f(r.optics.lambda_f_number_over_pitch),
+            f(r.optics.mtf_at_nyquist),
         );
         println!(
             "  sampling {:.3} scene px per detector px ({}); K = {:.4} DN/e-; signal {:.4e} e-, noise {:.4e} e-, SNR {:.1}; saturated {:.2} %{}; {:.2} s",
-            f(&r["sampling"]["ratio_x"]),
-            r["sampling"]["method"].as_str().unwrap_or(""),
-            f(&r["detector"]["gain_dn_per_e"]),
-            f(&r["signal"]["mean_electrons"]),
-            f(&r["signal"]["temporal_noise_e"]),
-            f(&r["signal"]["snr"]),
-            f(&r["signal"]["saturated_percent"]),
-            match r["calibration"]["netd_analytic_k_at_300k"].as_f64() {
+            r.sampling.ratio_x,
+            r.sampling.method,
+            r.detector.gain_dn_per_e,
+            r.signal.mean_electrons,
+            r.signal.temporal_noise_e,
+            r.signal.snr,
+            r.signal.saturated_percent,
+            match r.calibration.as_ref().and_then(|c| c.netd_analytic_k_at_300k) {
                 Some(n) => format!("; NETD {:.1} mK at 300 K", n * 1e3),
                 None => String::new(),
             },
-            f(&r["timings_s"]["total"]),
+            r.timings_s.total,
         );
         for p in written {
             println!("wrote {}", p.display());
@@ -264,11 +271,11 @@ pub fn temperature(args: TemperatureArgs) -> Result<()> {
             sensor.name
         );
     }
-    let model = DetectorModel::from_config(&sensor)?;
-    let instance = DetectorInstance::new(&model, args.seed)?;
+    let model = sensor.detector();
+    let instance = DetectorInstance::new(model, args.seed)?;
     let cal = Calibration::new(
         &sensor,
-        &model,
+        model,
         &instance,
         &calibration_options(args.nuc_degree),
     )?;
@@ -363,7 +370,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         opts.push(format!("channel={ch}"));
         let sensor = presets::load(&args.sensor.sensor, &opts, &args.sensor.set)?;
         sensors.push((
-            eoir::report::mean_wavelength_um(&sensor)?,
+            eoir::report::mean_wavelength_um(&build(&sensor)?)?,
             ch.clone(),
             sensor,
         ));
@@ -377,14 +384,14 @@ pub fn run(args: RunArgs) -> Result<()> {
             sensor.detector.gain_dn_per_e = Some(k);
         }
         let out = run_file(
-            &sensor,
+            &build(&sensor)?,
             &args.input,
             &args.output.join(format!("channel-{ch}")),
             options.clone(),
             args.quiet,
         )?;
         if shared_gain.is_none() {
-            shared_gain = out.report["detector"]["gain_dn_per_e"].as_f64();
+            shared_gain = Some(out.report.detector.gain_dn_per_e);
         }
         outs.push((lambda, out));
     }
@@ -405,8 +412,7 @@ pub fn demo(args: DemoArgs) -> Result<()> {
     if args.oversampling == 0 {
         bail!("--oversampling must be at least 1");
     }
-    let response = sensor.spectral_response()?;
-    let (lo, hi) = response.support_um();
+    let (lo, hi) = sensor.response().support_um();
     if !(lo.is_finite() && hi.is_finite()) {
         bail!(
             "sensor `{}` has an unbounded spectral response; give it a [filter]",

@@ -1,4 +1,4 @@
-//! Independent random streams (DESIGN.md §3).
+//! Independent random streams (docs/design.md §3).
 //!
 //! Every random effect draws from its own stream, keyed by `(seed, effect, frame, row)`:
 //! the key is hashed with the SplitMix64 finaliser (Steele, Lea & Flood, "Fast splittable

@@ -1,6 +1,6 @@
 //! The imaging engine: spectral radiance cube → mean photo-electrons on the detector grid.
 //!
-//! Exactly the flow of DESIGN.md §1:
+//! Exactly the flow of docs/design.md §1:
 //!
 //! 1. **Spectral weights** ([`SpectralWeights`]): electrons per unit radiance for every
 //!    input band, `w_b = t_int · A_det · π/(4N²)(1−R²) / (hc) · ∫ S(λ) λ φ_b(λ) dλ` with
@@ -34,7 +34,7 @@ use crate::error::{Error, Result};
 use crate::io::CubeReader;
 use crate::radiometry;
 use crate::scene::{CubeMeta, Geometry, RadianceUnits};
-use crate::sensor::{Component, FrequencyGrid, SensorConfig, SystemOtf};
+use crate::sensor::{Component, FrequencyGrid, Sensor, SystemOtf};
 use crate::spectrum::Spectrum;
 
 use fft::RealFft2;
@@ -60,10 +60,10 @@ pub struct SpectralWeights {
 impl SpectralWeights {
     /// Computes the weights of `sensor` for the bands of `meta` and checks that the
     /// wavelength grid covers the sensor's response (all but [`MAX_UNCOVERED_RESPONSE`]).
-    pub fn new(sensor: &SensorConfig, meta: &CubeMeta) -> Result<Self> {
-        let response = sensor.spectral_response()?;
-        check_coverage(&response, &meta.wavelength_um)?;
-        let etendue_time = sensor.camera_equation()?.etendue_time();
+    pub fn new(sensor: &Sensor, meta: &CubeMeta) -> Result<Self> {
+        let response = sensor.response();
+        check_coverage(response, &meta.wavelength_um)?;
+        let etendue_time = sensor.camera().etendue_time();
         let per_joule = 1e-6 / (PLANCK_H * SPEED_OF_LIGHT_C); // λ/(hc) with λ in µm
         let wl = &meta.wavelength_um;
         let electrons_per_unit = match meta.units {
@@ -75,7 +75,7 @@ impl SpectralWeights {
                         "at least 2 wavelengths for spectral radiance (W m-2 sr-1 µm-1); a single band must be band-integrated (W m-2 sr-1)",
                     ));
                 }
-                hat_weights(&response, wl)
+                hat_weights(response, wl)
                     .into_iter()
                     .map(|w| etendue_time * per_joule * w)
                     .collect()
@@ -282,7 +282,7 @@ pub struct Sampling {
 
 impl Sampling {
     /// Relates a scene of `meta`'s size and `geometry` to the detector of `sensor`.
-    pub fn new(sensor: &SensorConfig, meta: &CubeMeta, geometry: &Geometry) -> Result<Self> {
+    pub fn new(sensor: &Sensor, meta: &CubeMeta, geometry: &Geometry) -> Result<Self> {
         let dy = geometry.ifov_y_rad(meta.rows);
         let dx = geometry.ifov_x_rad(meta.cols);
         let d = sensor.ifov_rad();
@@ -397,7 +397,7 @@ pub fn next_fast_len(n: usize) -> usize {
 /// converges slowly; that light is physically spread by the optics, and mirror padding
 /// supplies it from the nearest scene content rather than from the opposite edge.
 /// Components that are flat in frequency at high frequency (aerosol) are excluded: their
-/// scattered fraction spreads evenly over the padded frame by design (DESIGN.md §5).
+/// scattered fraction spreads evenly over the padded frame by design (docs/design.md §5).
 pub fn pad_width(
     otf: &SystemOtf,
     spacing_rad: f64,
@@ -462,7 +462,7 @@ pub struct ImagingStats {
 /// frames of a sequence.
 #[derive(Debug)]
 pub struct Imager {
-    sensor: SensorConfig,
+    sensor: Sensor,
     otf: SystemOtf,
     weights: SpectralWeights,
     sampling: Sampling,
@@ -476,12 +476,12 @@ impl Imager {
     /// Prepares the chain. `geometry` is the scene's field of view (from the file or the
     /// command line). `wrap_tolerance` sets the padding (see [`pad_width`]).
     pub fn new(
-        sensor: &SensorConfig,
+        sensor: &Sensor,
         meta: &CubeMeta,
         geometry: &Geometry,
         wrap_tolerance: f64,
     ) -> Result<Self> {
-        let otf = SystemOtf::new(sensor)?;
+        let otf = sensor.otf().clone();
         let weights = SpectralWeights::new(sensor, meta)?;
         let mut sampling = Sampling::new(sensor, meta, geometry)?;
         let active: Vec<f64> = weights

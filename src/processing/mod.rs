@@ -8,10 +8,10 @@
 //! - [`bad_pixels`]: out-of-family pixel detection from a calibration response and
 //!   replacement by the median of valid neighbours.
 //! - [`photon_transfer`]: EMVA 1288 characterisation (conversion gain K, read noise, η,
-//!   DSNU, PRNU, saturation capacity), DESIGN.md §4.10.
+//!   DSNU, PRNU, saturation capacity), docs/design.md §4.10.
 //! - [`netd`]: analytic and measured noise-equivalent temperature difference.
 //! - [`temperature`]: DN ↔ radiance calibration and apparent-temperature images,
-//!   DESIGN.md §4.9.
+//!   docs/design.md §4.9.
 //!
 //! Frames stored as integers (`Array2<u16>` from an ADC) are converted with [`to_f64`].
 

@@ -1,6 +1,6 @@
 //! The spectral radiance cube, its wavelength grid, units and viewing geometry.
 //!
-//! Arrays are band-major `[band, row, col]` (DESIGN.md §3). Angular geometry uses the
+//! Arrays are band-major `[band, row, col]` (docs/design.md §3). Angular geometry uses the
 //! paraxial convention of the sensor model: a cube with `cols` samples over a horizontal
 //! field of view `fov_x` samples the scene every `ifov_x = fov_x / cols` radians.
 

@@ -1,6 +1,6 @@
 //! The system transfer function: the product of every enabled component of a sensor.
 //!
-//! Frequencies are angular, cycles/rad in object space (DESIGN.md §3). Components that do
+//! Frequencies are angular, cycles/rad in object space (docs/design.md §3). Components that do
 //! not depend on wavelength (detector footprint, motion, jitter, Gaussian, measured MTF)
 //! are evaluated once per frequency grid; the others (diffraction with aberration and
 //! defocus, turbulence, aerosol) once per wavelength.
@@ -17,7 +17,7 @@ use super::config::{resolve, SensorConfig, TurbulenceConfig};
 /// One transfer-function component; its name is the sensor-file section that enables it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Component {
-    /// Aperture diffraction, clear or centrally obscured (DESIGN.md §4.2–4.3).
+    /// Aperture diffraction, clear or centrally obscured (docs/design.md §4.2–4.3).
     Diffraction,
     /// Shannon aberration factor (§4.5).
     Aberration,
@@ -95,7 +95,7 @@ enum DefocusAmount {
 /// How the turbulence r0 is obtained at a wavelength.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Turbulence {
-    /// Horizontal path (closed form, DESIGN.md §4.7).
+    /// Horizontal path (closed form, docs/design.md §4.7).
     Horizontal { cn2: f64, range_m: f64 },
     /// Slant path: the spherical-wave weighted ∫Cn² (m^1/3), computed once.
     Slant { weighted_cn2: f64 },

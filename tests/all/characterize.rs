@@ -7,6 +7,11 @@ use std::process::Command;
 
 use eoir::characterize::{self, SimulateOptions};
 use eoir::detector::{DetectorInstance, DetectorModel};
+use eoir::sensor::Sensor;
+
+fn model_of(config: &eoir::sensor::SensorConfig) -> DetectorModel {
+    Sensor::build(config).unwrap().detector().clone()
+}
 use eoir::sensor::presets;
 use ndarray::Array2;
 
@@ -23,7 +28,7 @@ fn rel(a: f64, b: f64) -> f64 {
 /// preset's own K, full well, QE, dark current and background are kept).
 fn measurable(name: &str) -> Vec<String> {
     let base = presets::load(name, &[], &[]).unwrap();
-    let k = DetectorModel::from_config(&base).unwrap().gain_dn_per_e();
+    let k = model_of(&base).gain_dn_per_e();
     vec![
         format!("detector.read_noise_e={}", 3.0 / k),
         format!("detector.fpn.dsnu_sigma_e={}", 2.0 / k),
@@ -340,10 +345,8 @@ fn each_exposure_draws_its_own_temporal_noise() {
             "detector.fpn.prnu_sigma_rel=0.02".to_string(),
         ]
     };
-    let m1 = DetectorModel::from_config(&presets::load("ccd", &[], &overrides("5e-3")).unwrap())
-        .unwrap();
-    let m2 = DetectorModel::from_config(&presets::load("ccd", &[], &overrides("6e-3")).unwrap())
-        .unwrap();
+    let m1 = model_of(&presets::load("ccd", &[], &overrides("5e-3")).unwrap());
+    let m2 = model_of(&presets::load("ccd", &[], &overrides("6e-3")).unwrap());
     let i1 = DetectorInstance::new(&m1, 11).unwrap();
     let i2 = DetectorInstance::new(&m2, 11).unwrap();
     assert_eq!(i1.gain_map(), i2.gain_map(), "fixed pattern shared");

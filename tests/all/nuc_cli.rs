@@ -5,9 +5,10 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use eoir::calibration::{Calibration, CalibrationOptions};
-use eoir::detector::{DetectorInstance, DetectorModel};
+use eoir::detector::DetectorInstance;
 use eoir::processing::nuc::NucCoefficients;
 use eoir::sensor::presets;
+use eoir::sensor::Sensor;
 use ndarray::Array2;
 
 fn eoir() -> Command {
@@ -58,8 +59,8 @@ fn frames(dir: &Path, inst: &DetectorInstance, e: f64, key: u64, n: usize) -> Ve
 #[test]
 fn nuc_fit_apply_round_trip_reaches_the_temporal_noise_floor() {
     let dir = tempfile::tempdir().unwrap();
-    let s = sensor();
-    let model = DetectorModel::from_config(&s).unwrap();
+    let s = Sensor::build(&sensor()).unwrap();
+    let model = s.detector().clone();
     let inst = DetectorInstance::new(&model, 5).unwrap();
     let cal = Calibration::new(&s, &model, &inst, &CalibrationOptions::default()).unwrap();
     let k = model.gain_dn_per_e();
