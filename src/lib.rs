@@ -55,6 +55,7 @@
 pub mod atmosphere;
 pub mod calibration;
 pub mod cfa;
+pub mod characterize;
 pub mod constants;
 pub mod detector;
 pub mod display;

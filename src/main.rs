@@ -6,7 +6,7 @@ use clap::{Parser, Subcommand};
 
 mod cli;
 
-use cli::{edge_mtf, mtf, restore, run, sensors};
+use cli::{characterize, edge_mtf, mtf, nuc, restore, run, sensors};
 
 /// eoir — turns synthetic hyperspectral radiance into the imagery a real EO/IR camera records.
 #[derive(Debug, Parser)]
@@ -34,6 +34,10 @@ enum Command {
     EdgeMtf(edge_mtf::EdgeMtfArgs),
     /// List the built-in sensor presets, or print one fully resolved (`sensors show NAME`).
     Sensors(sensors::SensorsArgs),
+    /// EMVA 1288 characterisation of an acquisition set, or simulate one (`--simulate`).
+    Characterize(characterize::CharacterizeArgs),
+    /// Non-uniformity correction from blackbody frames: `nuc fit`, `nuc apply`.
+    Nuc(nuc::NucArgs),
 }
 
 fn main() -> ExitCode {
@@ -47,6 +51,8 @@ fn main() -> ExitCode {
         Command::Sensors(args) => sensors::sensors(args),
         Command::Restore(args) => restore::restore(args),
         Command::EdgeMtf(args) => edge_mtf::edge_mtf(args),
+        Command::Characterize(args) => characterize::characterize(args),
+        Command::Nuc(args) => nuc::nuc(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -2,8 +2,10 @@
 
 use anyhow::{bail, Context, Result};
 
+pub mod characterize;
 pub mod edge_mtf;
 pub mod mtf;
+pub mod nuc;
 pub mod progress;
 pub mod restore;
 pub mod run;

@@ -24,9 +24,9 @@
 //! 9. defects: dead → 0, hot → 2^bits − 1, stuck → a fixed random DN.
 //!
 //! Randomness follows docs/design.md §3 (see the `rng` submodule): one seed, one stream per
-//! effect, per frame (temporal effects) and per row, so the fixed pattern is identical in
-//! every frame, switching one effect does not change another's realisation, the same seed
-//! gives bit-identical frames and the result does not depend on the number of threads.
+//! effect, per exposure and frame (temporal effects) and per row, so the fixed pattern is
+//! identical in every frame, switching one effect does not change another's realisation,
+//! the same seed gives bit-identical frames and the result does not depend on the number of threads.
 //!
 //! The expected temporal noise for a mean signal (for NETD and SNR) is
 //! [`DetectorModel::temporal_noise_e`] / [`DetectorModel::temporal_noise_dn`].
@@ -54,7 +54,7 @@ pub use config::{
 };
 pub use gain::{background_electrons, reference_electrons, REFLECTIVE_LIMIT_UM};
 
-use rng::{stream, Effect};
+use rng::{temporal_stream, Effect};
 
 /// Standard deviations above the full well beyond which a Poisson draw can no longer fall
 /// below it (probability < 1e-300); such pixels are set to the full well without drawing.
@@ -97,6 +97,7 @@ pub struct DetectorModel {
     max_dn: f64,
     offset_dn: f64,
     gain_dn_per_e: f64,
+    integration_time_s: f64,
     dark_e: f64,
     background_e: f64,
     shot_noise: bool,
@@ -186,6 +187,7 @@ impl DetectorModel {
             max_dn: d.max_dn().min(u16::MAX as f64),
             offset_dn: d.offset_dn,
             gain_dn_per_e: d.manual_gain(),
+            integration_time_s: d.integration_time_s,
             dark_e,
             background_e,
             shot_noise: d.shot_noise.unwrap_or(true),
@@ -278,6 +280,18 @@ impl DetectorModel {
     /// Full-well capacity, electrons.
     pub fn full_well_e(&self) -> f64 {
         self.full_well_e
+    }
+
+    /// Integration (exposure) time, s.
+    pub fn integration_time_s(&self) -> f64 {
+        self.integration_time_s
+    }
+
+    /// The temporal-noise exposure key [`DetectorInstance::expose`] uses: the bit pattern
+    /// of the integration time, so runs at different exposure times draw independent
+    /// noise (see the `rng` submodule).
+    pub fn exposure_key(&self) -> u64 {
+        self.integration_time_s.to_bits()
     }
 
     /// Mean dark electrons per pixel per frame (dark current × integration time).
@@ -467,11 +481,30 @@ impl DetectorInstance {
 
     /// Simulates frame `frame_index` for the mean signal electrons `mean_e` (rows × cols,
     /// from the imaging engine; negative values, e.g. resampling ringing, count as 0) and
-    /// returns its DN. Deterministic in (seed, frame_index) and independent of the number
-    /// of threads; rows are processed in parallel.
+    /// returns its DN. The temporal noise is keyed by the exposure
+    /// ([`DetectorModel::exposure_key`], from the integration time) and the frame, so a
+    /// run at another exposure time draws independent noise. Deterministic in (seed,
+    /// integration time, frame_index) and independent of the number of threads; rows are
+    /// processed in parallel.
     ///
     /// Errors: wrong shape, or a non-finite value in `mean_e`.
     pub fn expose(&self, mean_e: &Array2<f64>, frame_index: u64) -> Result<Array2<u16>> {
+        self.expose_exposure(mean_e, self.model.exposure_key(), frame_index)
+    }
+
+    /// As [`expose`](Self::expose) with an explicit exposure key: each distinct
+    /// `exposure` gets its own temporal-noise streams (for series that vary the
+    /// illumination at a fixed integration time, e.g. a photon-transfer measurement),
+    /// while the fixed pattern stays that of this instance. Deterministic in
+    /// (seed, exposure, frame_index).
+    ///
+    /// Errors: wrong shape, or a non-finite value in `mean_e`.
+    pub fn expose_exposure(
+        &self,
+        mean_e: &Array2<f64>,
+        exposure: u64,
+        frame_index: u64,
+    ) -> Result<Array2<u16>> {
         let m = &self.model;
         if mean_e.dim() != (m.rows, m.cols) {
             return Err(Error::param(
@@ -490,7 +523,7 @@ impl DetectorInstance {
         let cols = m.cols;
         let rows_out: Vec<Vec<u16>> = (0..m.rows)
             .into_par_iter()
-            .map(|i| self.expose_row(mean_e.row(i), i, frame_index))
+            .map(|i| self.expose_row(mean_e.row(i), i, exposure, frame_index))
             .collect();
         let data: Vec<u16> = rows_out.into_iter().flatten().collect();
         Array2::from_shape_vec((m.rows, cols), data)
@@ -498,10 +531,10 @@ impl DetectorInstance {
     }
 
     /// One row of [`DetectorInstance::expose`].
-    fn expose_row(&self, signal: ArrayView1<f64>, i: usize, frame: u64) -> Vec<u16> {
+    fn expose_row(&self, signal: ArrayView1<f64>, i: usize, exposure: u64, frame: u64) -> Vec<u16> {
         let m = &self.model;
-        let mut shot_rng = stream(self.seed, Effect::Shot, frame, i as u64);
-        let mut read_rng = stream(self.seed, Effect::Read, frame, i as u64);
+        let mut shot_rng = temporal_stream(self.seed, Effect::Shot, exposure, frame, i as u64);
+        let mut read_rng = temporal_stream(self.seed, Effect::Read, exposure, frame, i as u64);
         let gain = self.gain.as_ref().map(|g| g.row(i));
         let offset = self.offset_e.as_ref().map(|o| o.row(i));
         let quad = self.quadratic.as_ref().map(|q| q.row(i));

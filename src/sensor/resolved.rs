@@ -39,6 +39,7 @@ const WHITE_BALANCE_MAX_UM: f64 = 50.0;
 pub struct Sensor {
     config: SensorConfig,
     response: Spectrum,
+    filter_qe: Spectrum,
     camera: CameraEquation,
     otf: SystemOtf,
     detector: DetectorModel,
@@ -131,6 +132,7 @@ impl Sensor {
                 let filter = channel_config.filter.build(dir, "filter")?;
                 channels.push(Sensor {
                     response: spectra.chain(&filter),
+                    filter_qe: filter.product(&spectra.qe),
                     config: channel_config,
                     camera,
                     otf: otf.clone(),
@@ -145,6 +147,7 @@ impl Sensor {
         Ok(Sensor {
             config: config.clone(),
             response,
+            filter_qe,
             camera,
             otf,
             detector,
@@ -152,6 +155,12 @@ impl Sensor {
             white_balance,
             warnings,
         })
+    }
+
+    /// Filter transmission × quantum efficiency (electrons per photon reaching the filter,
+    /// optics and atmosphere left out): what a flat-field photon-transfer measurement sees.
+    pub fn filter_qe(&self) -> &Spectrum {
+        &self.filter_qe
     }
 
     /// The configuration this sensor was built from (written as `config.toml`).
