@@ -9,6 +9,7 @@ mod characterize;
 mod cli;
 mod detector;
 mod edge_mtf;
+mod edge_mtf_cli;
 mod golden;
 mod imaging;
 mod io_envi;
