@@ -28,8 +28,10 @@ pub enum Error {
         #[source]
         source: std::io::Error,
     },
-    /// A file was read but its content is malformed or inconsistent.
-    #[error("{}: {message}", path.display())]
+    /// A file was read but its content is malformed or inconsistent. Displayed with
+    /// control characters escaped and at most 600 characters of message, so a hostile
+    /// or binary file cannot inject terminal escapes or have itself echoed at length.
+    #[error("{}: {}", path.display(), crate::limits::escape_controls(message, 600))]
     Format {
         /// The file concerned.
         path: PathBuf,
@@ -40,6 +42,17 @@ pub enum Error {
     /// the range a temperature lookup covers).
     #[error("{0}")]
     OutOfRange(String),
+    /// A size from a file or the command line that would exceed the memory limit (or
+    /// overflow 64-bit arithmetic); checked before allocating (see [`crate::limits`]).
+    #[error("{what} would need {needed}, more than the memory limit of {} (raise it with --max-memory if the machine has the memory)", crate::limits::human_bytes(*limit))]
+    TooLarge {
+        /// The structure or step concerned.
+        what: String,
+        /// The size it would need and how it follows from the input.
+        needed: String,
+        /// The limit in force, bytes.
+        limit: u64,
+    },
 }
 
 impl Error {

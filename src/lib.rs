@@ -10,6 +10,7 @@
 //! Modules, in dependency order (a module uses only those above it):
 //! - [`constants`]: SI constants (2019 exact values).
 //! - [`error`]: the typed error every fallible function returns.
+//! - [`limits`]: the memory budget every size from a file or the command line is checked against.
 //! - [`spectrum`]: spectral curves (filters, QE, transmissions) and integration weights.
 //! - [`radiometry`]: Planck's law, band integrals, the camera equation, apparent temperature.
 //! - [`optics`]: aperture, aberration, defocus, detector-footprint transfer functions.
@@ -49,6 +50,7 @@ pub mod detector;
 pub mod error;
 pub mod imaging;
 pub mod io;
+pub mod limits;
 pub mod motion;
 pub mod optics;
 pub mod pipeline;

@@ -161,6 +161,18 @@ fn white_balance(channels: &[SensorConfig]) -> Result<Vec<f64>> {
         .collect())
 }
 
+/// The error for a calibration whose flat fields give no usable pixels: with very few
+/// ADC bits (`detector.bits` = 1 or 2) the 280–320 K blackbody levels all quantise to the
+/// same DN, so no NUC, radiance or temperature can be derived. Names the setting.
+fn calibration_failed(sensor: &SensorConfig, e: Error) -> Error {
+    Error::OutOfRange(format!(
+        "the radiometric calibration of `{}` found no usable pixels ({e}); with detector.bits = {} ({} DN levels) the blackbody calibration levels cannot be told apart — use more ADC bits (at least 3 for this sensor), or call the library with RunOptions::calibration = None for DN-only products",
+        sensor.name,
+        sensor.detector.bits,
+        1u64 << sensor.detector.bits.min(63)
+    ))
+}
+
 /// Runs the chain on every frame of `reader`. Nothing is written: call
 /// [`RunOutput::write`]. `progress(done, total)` is called after each band of each frame.
 pub fn run(
@@ -179,6 +191,12 @@ pub fn run(
             "a field of view: pass --fov-deg H,V, or put `eoir fov deg = {H, V}` in the ENVI header / `fov_deg` in the NPY sidecar",
         )
     })?;
+    // A geometry given in code or on the command line gets the same checks as a file's.
+    crate::scene::CubeMeta {
+        geometry: Some(geometry),
+        ..meta.clone()
+    }
+    .validate("the run's geometry (--fov-deg / RunOptions::geometry)")?;
     let mut warnings = reader.warnings();
     warnings.extend(sensor.warnings());
     // A colour-filter-array sensor is imaged once per filter colour (each through its own
@@ -207,6 +225,13 @@ pub fn run(
     } else {
         input_frames
     };
+    let s = imagers[0].sampling();
+    crate::limits::check_run(
+        (s.y.padded_len, s.x.padded_len),
+        (meta.rows, meta.cols),
+        (sensor.detector.rows, sensor.detector.cols),
+        n_frames,
+    )?;
     let active: usize = imagers
         .iter()
         .map(|i| i.weights().active_bands().len())
@@ -239,6 +264,16 @@ pub fn run(
         let e = mean
             .as_ref()
             .ok_or_else(|| Error::OutOfRange("no frame imaged".into()))?;
+        // Products hold electrons as f32: a count beyond f32::MAX would be written as inf.
+        if let Some(v) = e
+            .iter()
+            .find(|v| !(v.is_finite() && v.abs() <= f32::MAX as f64))
+        {
+            return Err(Error::OutOfRange(format!(
+                "frame {f} of `{}`: the mean signal overflowed ({v:e} electrons, beyond the f32 range of the products); the input radiance or the sensor's spectral response (detector.quantum_efficiency, transmissions, integration time, pixel area) is too large to give a finite count",
+                options.input_name
+            )));
+        }
         if instance.is_none() {
             // `reference = "scene_mean"`: K from the first frame's mean signal.
             if let Some(fraction) = scene_gain {
@@ -294,7 +329,9 @@ pub fn run(
                 }
                 let temps = cal.temperatures_k();
                 let t_check = 0.5 * (temps[0] + temps[temps.len() - 1]) + 0.37;
-                let (raw_nu, nuc_nu) = cal.residual_nonuniformity(&instance, t_check)?;
+                let (raw_nu, nuc_nu) = cal
+                    .residual_nonuniformity(&instance, t_check)
+                    .map_err(|e| calibration_failed(sensor, e))?;
                 calibration_report = json!({
                     "nuc_degree": opts.degree,
                     "temperatures_k": temps,

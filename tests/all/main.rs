@@ -5,6 +5,8 @@ mod calibration;
 mod cfa;
 mod cli;
 mod detector;
+mod fuzz;
+mod hostile;
 mod imaging;
 mod io_envi;
 mod io_exr;
