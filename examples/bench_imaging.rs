@@ -19,7 +19,7 @@ fn main() -> eoir::Result<()> {
         "scene", "bands", "padded", "setup_s", "fft_s", "otf_s", "inv_s", "total_s"
     );
     for (k, bands) in [(1usize, 30usize), (2, 30), (3, 30), (3, 60)] {
-        let sensor = presets::load("multimir", &[], &[])?;
+        let sensor = eoir::sensor::Sensor::build(&presets::load("multimir", &[], &[])?)?;
         let (rows, cols) = (sensor.detector.rows * k, sensor.detector.cols * k);
         let wl: Vec<f64> = (0..bands)
             .map(|i| 4.4 + 0.9 * i as f64 / (bands - 1) as f64)

@@ -1,7 +1,7 @@
 //! Atmospheric transfer functions: the Fried parameter for horizontal and slant paths, the
-//! long-exposure turbulence MTF and the aerosol MTF (DESIGN.md §4.7–4.8).
+//! long-exposure turbulence MTF and the aerosol MTF (docs/design.md §4.7–4.8).
 //!
-//! Spatial frequencies are angular, cycles/rad in object space (DESIGN.md §3); lengths,
+//! Spatial frequencies are angular, cycles/rad in object space (docs/design.md §3); lengths,
 //! heights and wavelengths are in metres; Cn² is in m^-2/3.
 
 use std::f64::consts::PI;
@@ -9,12 +9,15 @@ use std::f64::consts::PI;
 use crate::error::{require_non_negative, require_positive, Error, Result};
 
 /// Fried parameter r0 (m) of a horizontal path with constant Cn² (m^-2/3), spherical wave
-/// (DESIGN.md §4.7): `r0 = 0.185 [8 λ² / (3 R Cn²)]^{3/5}`.
+/// (docs/design.md §4.7): `r0 = [0.423 k² Cn² R · 3/8]^{−3/5}`, k = 2π/λ.
 ///
-/// This is the spherical-wave form `[0.423 k² Cn² R · 3/8]^{−3/5}` (k = 2π/λ; 3/8 is
-/// `∫₀¹ x^{5/3} dx`, the path weight) with its coefficient rounded: unrounded it reads
-/// `(0.423 · 4π²)^{−3/5} = 0.18466` in front of `[8λ²/(3RCn²)]^{3/5}`, so this result is
-/// 0.18 % above what [`SlantPath::fried_r0`] gives for a horizontal path.
+/// This is the general spherical-wave form `r0 = [0.423 k² ∫₀^R Cn²(z) (z/R)^{5/3} dz]^{−3/5}`
+/// (Fried 1967; Andrews & Phillips, *Laser Beam Propagation through Random Media*, 2nd ed.,
+/// §6.4, with z measured from the source) for a constant Cn², where the path weight
+/// integrates to `∫₀¹ x^{5/3} dx = 3/8`. The same constant 0.423 is used by
+/// [`fried_r0_from_weighted_cn2`] for slant paths, so a slant path between equal heights
+/// gives exactly this r0. (The often printed `0.185 [8λ²/(3 R Cn²)]^{3/5}` is this form
+/// with `(0.423·4π²)^{−3/5} = 0.18466` rounded up, 0.18 % larger.)
 ///
 /// # Errors
 /// [`Error::InvalidParameter`] unless `wavelength_m`, `range_m` and `cn2_m_minus_2_3` are
@@ -23,8 +26,21 @@ pub fn fried_r0_horizontal(wavelength_m: f64, range_m: f64, cn2_m_minus_2_3: f64
     let lambda = require_positive("wavelength_m", wavelength_m)?;
     let range = require_positive("range_m", range_m)?;
     let cn2 = require_positive("cn2_m_minus_2_3", cn2_m_minus_2_3)?;
-    Ok(0.185 * (8.0 * lambda * lambda / (3.0 * range * cn2)).powf(0.6))
+    Ok(fried_r0_from_weighted_cn2(
+        lambda,
+        cn2 * range * SPHERICAL_WAVE_PATH_WEIGHT,
+    ))
 }
+
+/// `∫₀¹ x^{5/3} dx = 3/8`: the spherical-wave path weight of a constant Cn² profile.
+pub const SPHERICAL_WAVE_PATH_WEIGHT: f64 = 3.0 / 8.0;
+
+/// The constant of the Fried parameter, `r0 = [FRIED_CONSTANT · k² ∫Cn² w dz]^{−3/5}`:
+/// 0.423 ≈ 2.91/6.88, from equating the wave structure function
+/// `D(ρ) = 2.91 k² ρ^{5/3} ∫Cn² w dz` to Fried's `6.88 (ρ/r0)^{5/3}` (Fried 1967; Andrews &
+/// Phillips, *Laser Beam Propagation through Random Media*, 2nd ed., 2005, ch. 6). One
+/// constant for horizontal and slant paths.
+pub const FRIED_CONSTANT: f64 = 0.423;
 
 /// Which end of a slant path the sensor is at.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -36,7 +52,7 @@ pub enum SensorEnd {
 }
 
 /// A straight slant path through a turbulence profile `Cn²(h) = Cn²₀ · h^{−4/3}`
-/// (h in m; Cn²₀ = Cn² at h = 1 m), from the sensor to the target (DESIGN.md §4.7).
+/// (h in m; Cn²₀ = Cn² at h = 1 m), from the sensor to the target (docs/design.md §4.7).
 ///
 /// The path is straight in a flat-earth geometry: the height varies linearly with the
 /// distance along the path. Construct with [`SlantPath::new`], which validates; the
@@ -143,7 +159,7 @@ impl SlantPath {
 
     /// Spherical-wave weighted path integral `∫₀^R Cn²(h(z)) (s/R)^{5/3} dz` (m^{1/3}),
     /// with z the distance from the sensor and `s = R − z` the distance from the target
-    /// (the source), by adaptive Gauss–Kronrod quadrature (DESIGN.md §4.7).
+    /// (the source), by adaptive Gauss–Kronrod quadrature (docs/design.md §4.7).
     ///
     /// The weight is 1 at the sensor and 0 at the target, so turbulence near the sensor
     /// dominates: which end of the path the sensor is at matters. NaN if the fields are
@@ -153,7 +169,7 @@ impl SlantPath {
     }
 
     /// Fried parameter r0 (m) for a point source at the target seen by the sensor
-    /// (spherical wave, DESIGN.md §4.7): `r0 = [0.423 k² ∫₀^R Cn²(h(z)) (s/R)^{5/3} dz]^{−3/5}`,
+    /// (spherical wave, docs/design.md §4.7): `r0 = [0.423 k² ∫₀^R Cn²(h(z)) (s/R)^{5/3} dz]^{−3/5}`,
     /// `k = 2π/λ`. With `cn2_at_1m = 0` there is no turbulence and r0 is `+∞`
     /// (for which [`turbulence_long_exposure`] is 1).
     ///
@@ -203,7 +219,7 @@ impl SlantPath {
     }
 }
 
-/// Long-exposure atmospheric turbulence MTF (DESIGN.md §4.7; Fried 1966):
+/// Long-exposure atmospheric turbulence MTF (docs/design.md §4.7; Fried 1966):
 /// `exp(−3.44 (λ f / r0)^{5/3})`, f in cycles/rad (its sign is ignored), λ and r0 in m.
 ///
 /// Equals exp(−3.44) at f = r0/λ and 1 for r0 = +∞. The caller validates λ > 0, r0 > 0.
@@ -212,7 +228,7 @@ pub fn turbulence_long_exposure(f_cy_per_rad: f64, wavelength_m: f64, r0_m: f64)
     (-3.44 * x.powf(5.0 / 3.0)).exp()
 }
 
-/// Aerosol scattering MTF (DESIGN.md §4.8), f in cycles/rad (its sign is ignored).
+/// Aerosol scattering MTF (docs/design.md §4.8), f in cycles/rad (its sign is ignored).
 ///
 /// With the cutoff `f_a = a/λ` (a = `particle_radius_m`, λ = `wavelength_m`):
 /// `exp(−kR − σR (f/f_a)²)` for |f| < f_a and `exp(−(k+σ)R)` above, k = absorption and
@@ -336,13 +352,13 @@ fn gauss_kronrod_adaptive(f: impl Fn(f64) -> f64, a: f64, b: f64, rel_tol: f64) 
     panels.iter().map(|p| p.2).sum()
 }
 
-/// Fried parameter from a path-weighted Cn² integral (DESIGN.md §4.7):
+/// Fried parameter from a path-weighted Cn² integral (docs/design.md §4.7):
 /// `r0 = [0.423 k² ∫ Cn²(z) w(z) dz]^{−3/5}`, k = 2π/λ, with `weighted_cn2_m_1_3` the
 /// integral in m^{1/3} (e.g. [`SlantPath::spherical_weighted_cn2`], computed once and
 /// reused for every wavelength). Returns +∞ for a zero integral (no turbulence).
 pub fn fried_r0_from_weighted_cn2(wavelength_m: f64, weighted_cn2_m_1_3: f64) -> f64 {
     let k = 2.0 * PI / wavelength_m;
-    (0.423 * k * k * weighted_cn2_m_1_3).powf(-0.6)
+    (FRIED_CONSTANT * k * k * weighted_cn2_m_1_3).powf(-0.6)
 }
 
 #[cfg(test)]

@@ -1,5 +1,5 @@
 //! Radiometric calibration through the simulated sensor: "the way back" from DN to
-//! apparent temperature and in-band radiance (issue 4; DESIGN.md §1 processing, §4.9).
+//! apparent temperature and in-band radiance (issue 4; docs/design.md §1 processing, §4.9).
 //!
 //! [`Calibration::new`] does what a laboratory does with a real camera: it views a
 //! uniform blackbody at a few temperatures *through the same detector instance* that
@@ -9,7 +9,7 @@
 //!
 //! 1. the per-pixel polynomial NUC ([`NucCoefficients`]) mapping each pixel's DN onto the
 //!    **ideal DN** of the mean detector model, `DN*(T) = model.expected_dn(μ_e(T))`, with
-//!    `μ_e(T) = camera_equation.electrons_blackbody(T, S)` (DESIGN.md §4.1; S the spectral
+//!    `μ_e(T) = camera_equation.electrons_blackbody(T, S)` (docs/design.md §4.1; S the spectral
 //!    response τ_filter τ_optics τ_atm η). A uniform blackbody gives uniform mean electrons
 //!    (blur preserves the mean); when `optics.cos4` is on, each pixel's electrons are
 //!    multiplied by its cos⁴θ (θ the off-axis angle of the pixel centre, as the imaging
@@ -17,7 +17,7 @@
 //!    the cos⁴ roll-off: corrected DN are "on-axis equivalent";
 //! 2. the bad-pixel map: [`bad_pixels::detect`] on the coldest and hottest level averages,
 //!    united with the pixels the NUC fit could not determine;
-//! 3. two lookup tables of the sensor's own blackbody response (DESIGN.md §4.9):
+//! 3. two lookup tables of the sensor's own blackbody response (docs/design.md §4.9):
 //!    `T → DN*(T)` (inverted for the apparent temperature) and `T → L_band(T)`, the
 //!    **in-band radiance** defined here as
 //!
@@ -26,7 +26,8 @@
 //!    i.e. the blackbody radiance weighted by the normalised spectral response (peak 1), so
 //!    that for a flat-topped band it is the radiance within the band.
 //!
-//! The DN table covers `lut_range_k` trimmed to where DN* rises strictly: above the
+//! The radiance table covers the whole `lut_range_k` (radiance is not limited by the
+//! ADC). The DN table covers `lut_range_k` trimmed to where DN* rises strictly: above the
 //! temperature at which the ideal pixel reaches full scale (ADC or full well) DN* is flat
 //! and no temperature can be recovered. Corrected values outside the table become NaN and
 //! are counted; raw DN at the ADC limits (0 or 2^bits − 1) are clipped measurements and
@@ -41,7 +42,7 @@ use crate::processing::bad_pixels::{self, BadPixelCriteria, BadPixelMap};
 use crate::processing::netd;
 use crate::processing::nuc::{self, NucCoefficients};
 use crate::radiometry::{band_radiance, CameraEquation, TemperatureLut};
-use crate::sensor::SensorConfig;
+use crate::sensor::Sensor;
 use crate::spectrum::Spectrum;
 
 /// First frame index of the calibration frames: level l, frame i uses
@@ -146,7 +147,7 @@ struct Chain {
 
 impl Chain {
     /// Mean signal electrons of an on-axis pixel viewing a blackbody at `t_k`
-    /// (camera equation, DESIGN.md §4.1); NaN if the band integral fails.
+    /// (camera equation, docs/design.md §4.1); NaN if the band integral fails.
     fn electrons(&self, t_k: f64) -> f64 {
         self.camera
             .electrons_blackbody(t_k, &self.response)
@@ -187,8 +188,8 @@ pub struct Calibration {
 
 /// The cos⁴θ relative illumination of each pixel centre (θ from the IFOV and the pixel's
 /// offset from the array centre, tan²θ = x² + y²), as applied by the imaging engine
-/// (DESIGN.md §4.1). Private copy: the engine's helper is not public.
-fn cos4_map(sensor: &SensorConfig, rows: usize, cols: usize) -> Array2<f64> {
+/// (docs/design.md §4.1). Private copy: the engine's helper is not public.
+fn cos4_map(sensor: &Sensor, rows: usize, cols: usize) -> Array2<f64> {
     let d = sensor.ifov_rad();
     Array2::from_shape_fn((rows, cols), |(r, c)| {
         let y = (r as f64 - (rows as f64 - 1.0) / 2.0) * d;
@@ -280,7 +281,7 @@ impl Calibration {
     /// response without a bounded band; a LUT range whose lower end already saturates;
     /// errors of the NUC fit or bad-pixel detection.
     pub fn new(
-        sensor: &SensorConfig,
+        sensor: &Sensor,
         model: &DetectorModel,
         instance: &DetectorInstance,
         opts: &CalibrationOptions,
@@ -295,7 +296,7 @@ impl Calibration {
                 format!("an instance of the model's {rows} x {cols} detector"),
             ));
         }
-        let response = sensor.spectral_response()?;
+        let response = sensor.response().clone();
         let peak_response = peak_of(&response);
         if !(peak_response.is_finite() && peak_response > 0.0) {
             return Err(Error::param(
@@ -305,7 +306,7 @@ impl Calibration {
             ));
         }
         let chain = Chain {
-            camera: sensor.camera_equation()?,
+            camera: *sensor.camera(),
             response,
             model: model.clone(),
             peak_response,
@@ -412,7 +413,10 @@ impl Calibration {
         let c1 = chain.clone();
         let dn_lut = TemperatureLut::new(move |t| c1.ideal_dn(t), t_lo, top)?;
         let c2 = chain.clone();
-        let radiance_lut = TemperatureLut::new(move |t| c2.band_radiance(t), t_lo, top)?;
+        // L_band(T) does not depend on the ADC: the radiance table spans the whole range,
+        // so an in-band radiance image (`eoir temperature` on f32 radiance) inverts above
+        // the temperature where the DN saturate.
+        let radiance_lut = TemperatureLut::new(move |t| c2.band_radiance(t), t_lo, t_hi)?;
 
         Ok(Calibration {
             chain,
@@ -468,7 +472,7 @@ impl Calibration {
     }
 
     /// Mean signal electrons of an on-axis pixel viewing a blackbody at `t_k`
-    /// (camera equation, DESIGN.md §4.1).
+    /// (camera equation, docs/design.md §4.1).
     ///
     /// Errors: invalid temperature or an unbounded spectral response.
     pub fn blackbody_electrons(&self, t_k: f64) -> Result<f64> {
@@ -551,7 +555,7 @@ impl Calibration {
     }
 
     /// Corrected DN → `(apparent temperature K, in-band radiance W m-2 sr-1, NaN count)`:
-    /// T by inverting the DN* table (DESIGN.md §4.9), the radiance as `L_band(T)` of the
+    /// T by inverting the DN* table (docs/design.md §4.9), the radiance as `L_band(T)` of the
     /// blackbody at that temperature. Values outside the table (or NaN) give NaN in both
     /// images and are counted.
     pub fn to_temperature(&self, corrected: ArrayView2<f64>) -> (Array2<f64>, Array2<f64>, usize) {
@@ -610,7 +614,7 @@ impl Calibration {
     }
 }
 
-/// Measured NETD (K) of `instance` from simulated frames (DESIGN.md §4.10 style
+/// Measured NETD (K) of `instance` from simulated frames (docs/design.md §4.10 style
 /// measurement, [`netd::measured_netd`]): `frames` frames of a uniform blackbody at `t_k`
 /// (frame indices from [`NETD_FRAME_BASE`]) and `frames` at `t_k + delta_t_k`; the
 /// temporal noise is the root of the pixel-averaged temporal variance at `t_k` and the
@@ -622,7 +626,7 @@ impl Calibration {
 ///
 /// Errors: invalid temperatures, fewer than 2 frames, or the errors of the measurement.
 pub fn measured_netd(
-    sensor: &SensorConfig,
+    sensor: &Sensor,
     instance: &DetectorInstance,
     t_k: f64,
     delta_t_k: f64,
@@ -640,11 +644,11 @@ pub fn measured_netd(
     }
     let model = instance.model();
     let (rows, cols) = (model.rows(), model.cols());
-    let response = sensor.spectral_response()?;
-    let camera = sensor.camera_equation()?;
+    let response = sensor.response();
+    let camera = sensor.camera();
     let cos4 = sensor.optics.cos4.then(|| cos4_map(sensor, rows, cols));
     let field = |t: f64| -> Result<Array2<f64>> {
-        let e = camera.electrons_blackbody(t, &response)?;
+        let e = camera.electrons_blackbody(t, response)?;
         Ok(match &cos4 {
             Some(m) => m.mapv(|c| c * e),
             None => Array2::from_elem((rows, cols), e),

@@ -160,64 +160,8 @@ pub fn check_bytes(what: &str, detail: &str, bytes: u64) -> Result<u64> {
     Ok(bytes)
 }
 
-/// `bytes` as a short human-readable size (binary units).
-pub fn human_bytes(bytes: u64) -> String {
-    const UNITS: [&str; 7] = ["B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"];
-    let mut v = bytes as f64;
-    let mut u = 0;
-    while v >= 1024.0 && u + 1 < UNITS.len() {
-        v /= 1024.0;
-        u += 1;
-    }
-    if u == 0 {
-        format!("{bytes} B")
-    } else {
-        format!("{v:.1} {}", UNITS[u])
-    }
-}
-
-/// A short, escaped rendering of untrusted text for an error message: at most 40
-/// characters, control and non-ASCII characters escaped (`\n`, `\u{7f}`), `…` when cut.
-/// Error messages quote file contents only through this.
-pub fn escape_token(text: &str) -> String {
-    escape_bounded(text, 40)
-}
-
-/// Like [`escape_token`] with a bound of `max` characters (for a parser's own message,
-/// which may embed a value it read).
-pub fn escape_bounded(text: &str, max: usize) -> String {
-    let mut out = String::new();
-    for (i, c) in text.chars().enumerate() {
-        if i == max {
-            out.push('…');
-            break;
-        }
-        if c.is_ascii_graphic() || c == ' ' {
-            out.push(c);
-        } else {
-            out.extend(c.escape_default());
-        }
-    }
-    out
-}
-
-/// `text` with control characters escaped (`\n`, `\u{1b}`; other Unicode such as `µ`
-/// kept) and cut at `max` characters with `…`.
-pub fn escape_controls(text: &str, max: usize) -> String {
-    let mut out = String::new();
-    for (i, c) in text.chars().enumerate() {
-        if i == max {
-            out.push('…');
-            break;
-        }
-        if c.is_control() {
-            out.extend(c.escape_default());
-        } else {
-            out.push(c);
-        }
-    }
-    out
-}
+// The message helpers live in `error` (below it in the module order), re-exported here.
+pub use crate::error::{escape_bounded, escape_controls, escape_token, human_bytes};
 
 /// A sensor-file size as a count for the checks above.
 pub fn dim(v: usize) -> u64 {

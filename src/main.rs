@@ -6,7 +6,7 @@ use clap::{Parser, Subcommand};
 
 mod cli;
 
-use cli::{mtf, run, sensors};
+use cli::{characterize, edge_mtf, mtf, nuc, restore, run, sensors};
 
 /// eoir — turns synthetic hyperspectral radiance into the imagery a real EO/IR camera records.
 #[derive(Debug, Parser)]
@@ -32,8 +32,16 @@ enum Command {
     Temperature(run::TemperatureArgs),
     /// Print or plot the transfer functions (MTF) of a sensor along the x axis.
     Mtf(mtf::MtfArgs),
+    /// Sharpen a recorded image with the sensor's own transfer function (Wiener filter).
+    Restore(restore::RestoreArgs),
+    /// Measure the MTF of a slanted edge in an image (ISO 12233).
+    EdgeMtf(edge_mtf::EdgeMtfArgs),
     /// List the built-in sensor presets, or print one fully resolved (`sensors show NAME`).
     Sensors(sensors::SensorsArgs),
+    /// EMVA 1288 characterisation of an acquisition set, or simulate one (`--simulate`).
+    Characterize(characterize::CharacterizeArgs),
+    /// Non-uniformity correction from blackbody frames: `nuc fit`, `nuc apply`.
+    Nuc(nuc::NucArgs),
 }
 
 fn main() -> ExitCode {
@@ -49,6 +57,10 @@ fn main() -> ExitCode {
         Command::Temperature(args) => run::temperature(args),
         Command::Mtf(args) => mtf::mtf(args),
         Command::Sensors(args) => sensors::sensors(args),
+        Command::Restore(args) => restore::restore(args),
+        Command::EdgeMtf(args) => edge_mtf::edge_mtf(args),
+        Command::Characterize(args) => characterize::characterize(args),
+        Command::Nuc(args) => nuc::nuc(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

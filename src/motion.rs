@@ -1,14 +1,14 @@
 //! Platform and line-of-sight motion: linear smear, random jitter and a global Gaussian blur.
 //!
 //! Every transfer function here takes angular spatial frequencies in cycles/rad in object
-//! space (DESIGN.md §3) and returns a real, signed value (DESIGN.md §4.6). The smear length,
+//! space (docs/design.md §3) and returns a real, signed value (docs/design.md §4.6). The smear length,
 //! jitter and blur widths are angles in rad.
 
 use std::f64::consts::PI;
 
 use crate::optics::sinc;
 
-/// Linear motion blur transfer function (DESIGN.md §4.6): `sinc(f_along · d)`.
+/// Linear motion blur transfer function (docs/design.md §4.6): `sinc(f_along · d)`.
 ///
 /// The image moves uniformly over an angle `d = smear_rad` during the integration time,
 /// so the point-spread function is a box of width `d` along the motion direction, centred
@@ -29,7 +29,7 @@ pub fn linear_motion(
 }
 
 /// Angular smear (rad) from a relative transverse velocity: `d = v · t_int / R`
-/// (DESIGN.md §4.6), with `v` in m/s, `t_int` in s and the range `R` in m.
+/// (docs/design.md §4.6), with `v` in m/s, `t_int` in s and the range `R` in m.
 ///
 /// Small-angle form: valid while `d ≪ 1` rad, which holds for any realistic exposure.
 /// The caller validates the inputs (a range of 0 gives an infinite smear).
@@ -38,12 +38,12 @@ pub fn smear_from_velocity(velocity_m_s: f64, integration_time_s: f64, range_m: 
 }
 
 /// Angular smear (rad) from a line-of-sight angular rate: `d = ω · t_int`, with ω in rad/s
-/// and `t_int` in s (DESIGN.md §4.6).
+/// and `t_int` in s (docs/design.md §4.6).
 pub fn smear_from_angular_rate(rate_rad_s: f64, integration_time_s: f64) -> f64 {
     rate_rad_s * integration_time_s
 }
 
-/// Random line-of-sight jitter transfer function (DESIGN.md §4.6):
+/// Random line-of-sight jitter transfer function (docs/design.md §4.6):
 /// `exp(−2π²σ²(fx² + fy²))`.
 ///
 /// The jitter is a zero-mean Gaussian random angle of rms `σ = sigma_rad` on each axis,
@@ -54,7 +54,7 @@ pub fn jitter(fx_cy_per_rad: f64, fy_cy_per_rad: f64, sigma_rad: f64) -> f64 {
     gaussian(fx_cy_per_rad, fy_cy_per_rad, sigma_rad, sigma_rad)
 }
 
-/// Global Gaussian blur transfer function (DESIGN.md §4.6), with separate rms widths per
+/// Global Gaussian blur transfer function (docs/design.md §4.6), with separate rms widths per
 /// axis: `exp(−2π²(σx² fx² + σy² fy²))`.
 ///
 /// The Fourier transform of the unit-area PSF

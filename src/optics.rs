@@ -1,7 +1,7 @@
 //! Optical transfer functions: aperture diffraction (clear and centrally obscured),
 //! defocus, aberration (Shannon), detector footprint, and measured MTF tables.
 //!
-//! Conventions (DESIGN.md §3): spatial frequency is *angular*, cycles/rad in object space.
+//! Conventions (docs/design.md §3): spatial frequency is *angular*, cycles/rad in object space.
 //! The aperture terms take the normalised frequency `X = f / f_c` with the diffraction cutoff
 //! `f_c = D/λ` cycles/rad (see [`cutoff_cy_per_rad`]); in the image plane the same cutoff
 //! is `1/(λN)` cycles/m. Transfer functions are real and signed (the sinc and defocus lobes
@@ -28,7 +28,7 @@ pub fn sinc(x: f64) -> f64 {
 }
 
 /// Diffraction cutoff of a circular aperture, cycles/rad in object space: `f_c = D/λ`
-/// (DESIGN.md §4.2). `aperture_diameter_m` and `wavelength_m` in metres.
+/// (docs/design.md §4.2). `aperture_diameter_m` and `wavelength_m` in metres.
 pub fn cutoff_cy_per_rad(aperture_diameter_m: f64, wavelength_m: f64) -> f64 {
     aperture_diameter_m / wavelength_m
 }
@@ -40,7 +40,7 @@ fn clear_core(x: f64) -> f64 {
     FRAC_2_PI * (x.acos() - x * ((1.0 - x) * (1.0 + x)).sqrt())
 }
 
-/// Diffraction OTF of a clear circular aperture (DESIGN.md §4.2):
+/// Diffraction OTF of a clear circular aperture (docs/design.md §4.2):
 /// `2/π [acos X − X√(1−X²)]` for `|X| ≤ 1`, 0 beyond, with `X = f/f_c` the normalised
 /// frequency (uses |x|). It is 1 at `X = 0` and never negative.
 pub fn diffraction_clear(x: f64) -> f64 {
@@ -52,7 +52,7 @@ pub fn diffraction_clear(x: f64) -> f64 {
     }
 }
 
-/// Diffraction OTF of a centrally obscured circular aperture (DESIGN.md §4.3).
+/// Diffraction OTF of a centrally obscured circular aperture (docs/design.md §4.3).
 ///
 /// `r` is the obscuration ratio (obscuration diameter / aperture diameter, `0 ≤ r < 1`;
 /// `r ≤ 0` gives [`diffraction_clear`]), and `x = f/f_c` is normalised to the cutoff of the
@@ -66,7 +66,7 @@ pub fn diffraction_clear(x: f64) -> f64 {
 ///   while `(1−R)/2 < X < (1+R)/2`, with `α = acos[(1 + R² − 4X²)/(2R)]`;
 ///   `C = 0` beyond.
 ///
-/// This is the corrected form of DESIGN.md §4.3 (printed versions with `2R²/π sin α`, or a
+/// This is the corrected form of docs/design.md §4.3 (printed versions with `2R²/π sin α`, or a
 /// flat branch ending at `(1−R²)/2`, are wrong by up to 0.26). It is normalised to 1 at
 /// `X = 0` and, as the autocorrelation of a non-negative pupil, never negative (checked on a
 /// dense grid of X and R against this unclipped expression). It agrees with the FFT
@@ -100,7 +100,7 @@ pub fn diffraction_obscured(x: f64, r: f64) -> f64 {
     (a + b + c) / (1.0 - r2)
 }
 
-/// Shannon's aberration factor (DESIGN.md §4.5; R. R. Shannon, *The Art and Science of
+/// Shannon's aberration factor (docs/design.md §4.5; R. R. Shannon, *The Art and Science of
 /// Optical Design*): `1 − (W_rms/0.18)² [1 − 4(X − ½)²]`, clipped at 0, for `0 ≤ |X| ≤ 1`.
 ///
 /// `w_rms_waves` is the rms wavefront error in waves (configure it directly; `W_pp/3.5` is
@@ -121,7 +121,7 @@ pub fn aberration_shannon(x: f64, w_rms_waves: f64) -> f64 {
     (1.0 - k * k * (1.0 - 4.0 * d * d)).max(0.0)
 }
 
-/// Defocus factor (DESIGN.md §4.4): `2 J1(a)/a` with `a = 8π W020 X(1 − X)`, 1 at `a = 0`
+/// Defocus factor (docs/design.md §4.4): `2 J1(a)/a` with `a = 8π W020 X(1 − X)`, 1 at `a = 0`
 /// (J1 from `libm::j1`).
 ///
 /// `w020_waves` is the edge (marginal) wavefront error of the defocus in waves (see
@@ -139,7 +139,12 @@ pub fn defocus(x: f64, w020_waves: f64) -> f64 {
     if x > 1.0 {
         return 0.0;
     }
-    let a = 8.0 * PI * w020_waves * x * (1.0 - x);
+    jinc(8.0 * PI * w020_waves * x * (1.0 - x))
+}
+
+/// The Airy amplitude `2 J1(a)/a` (1 at `a = 0`; J1 from `libm::j1`), the factor of
+/// [`defocus`] as a function of its argument `a = 8π W020 X(1 − X)`.
+pub fn jinc(a: f64) -> f64 {
     if a.abs() < 1e-6 {
         // Series 2J1(a)/a = 1 − a²/8 + …; avoids 0/0 at a = 0.
         1.0 - a * a / 8.0
@@ -148,14 +153,14 @@ pub fn defocus(x: f64, w020_waves: f64) -> f64 {
     }
 }
 
-/// Edge wavefront error (waves) produced by a focus shift (DESIGN.md §4.4):
+/// Edge wavefront error (waves) produced by a focus shift (docs/design.md §4.4):
 /// `W020 = δz / (8 N² λ)`, with `focus_shift_m` = δz (image-side focus error, m),
 /// `f_number` = N and `wavelength_m` = λ (m).
 pub fn defocus_w020_from_focus_shift(focus_shift_m: f64, f_number: f64, wavelength_m: f64) -> f64 {
     focus_shift_m / (8.0 * f_number * f_number * wavelength_m)
 }
 
-/// Detector footprint transfer function (DESIGN.md §4.6):
+/// Detector footprint transfer function (docs/design.md §4.6):
 /// `sinc(fx·wx/fl) · sinc(fy·wy/fl)`, with `fx_cy_per_rad`, `fy_cy_per_rad` the angular
 /// frequencies (cycles/rad), `active_width_x_m`, `active_width_y_m` the ACTIVE (photosensitive)
 /// widths of the pixel (m) and `focal_length_m` the focal length (m). Signed.
@@ -310,7 +315,7 @@ impl MeasuredMtf {
     /// (e.g. `freq_cy_per_mrad, mtf`) is skipped. The table rules of [`MeasuredMtf::new`]
     /// apply. Errors name the file, the 1-based line number and the line's text.
     pub fn from_csv(path: &Path) -> Result<Self> {
-        let text = crate::io::input::read_text(path)?;
+        let text = crate::input::read_text(path)?;
         let mut freq = Vec::new();
         let mut mtf = Vec::new();
         // (line number, line text) of every data row, for error messages.

@@ -15,10 +15,11 @@ use crate::error::{Error, Result};
 
 static FONT_BYTES: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
 static REGISTER_FONT: Once = Once::new();
-const FONT: &str = "eoir-sans";
+/// Name under which the embedded font is registered with plotters.
+pub(crate) const FONT: &str = "eoir-sans";
 
 /// Registers the embedded font with plotters (once per process).
-fn ensure_font() {
+pub(crate) fn ensure_font() {
     REGISTER_FONT.call_once(|| {
         // The font is compiled in and known to parse; a failure would only mean text
         // is not drawn, never wrong numbers, so it is not an error.
@@ -80,6 +81,12 @@ const PALETTE: [RGBColor; 10] = [
 
 /// Draws `plot` into a PNG file at `path`, written atomically.
 pub fn write_line_plot(path: &Path, plot: &LinePlot<'_>) -> Result<()> {
+    let bytes = render_line_plot(plot)?;
+    crate::io::raster::write_png_bytes(path, &bytes)
+}
+
+/// Draws `plot` and returns the PNG bytes (for a file or an inline image).
+pub fn render_line_plot(plot: &LinePlot<'_>) -> Result<Vec<u8>> {
     ensure_font();
     let (x_lo, x_hi) = range_of(plot.series.iter().flat_map(|s| s.x.iter().copied()))
         .ok_or_else(|| Error::param("plot series", "empty", "at least one finite point"))?;
@@ -89,63 +96,61 @@ pub fn write_line_plot(path: &Path, plot: &LinePlot<'_>) -> Result<()> {
             .ok_or_else(|| Error::param("plot series", "empty", "at least one finite point"))?,
     };
     let pad = if y_hi > y_lo { 0.0 } else { 0.5 };
-    let draw_err = |e: String| Error::format(path, format!("cannot draw plot: {e}"));
-    crate::io::atomic_write_path(path, |tmp| {
-        // plotters picks the encoder from the extension, so the temporary name keeps `.png`.
-        let tmp_png = tmp.with_extension("png");
-        let result = (|| -> Result<()> {
-            let root = BitMapBackend::new(&tmp_png, plot.size_px).into_drawing_area();
-            root.fill(&WHITE).map_err(|e| draw_err(e.to_string()))?;
-            let mut chart = ChartBuilder::on(&root)
-                .caption(plot.title, (FONT, 22))
-                .margin(12)
-                .x_label_area_size(45)
-                .y_label_area_size(60)
-                .build_cartesian_2d(x_lo..x_hi, (y_lo - pad)..(y_hi + pad))
+    let draw_err = |e: String| Error::param("plot", format!("cannot draw: {e}"), "a drawable plot");
+    let (w, h) = plot.size_px;
+    let mut buf = vec![255u8; w as usize * h as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| draw_err(e.to_string()))?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(plot.title, (FONT, 22))
+            .margin(12)
+            .x_label_area_size(45)
+            .y_label_area_size(60)
+            .build_cartesian_2d(x_lo..x_hi, (y_lo - pad)..(y_hi + pad))
+            .map_err(|e| draw_err(e.to_string()))?;
+        chart
+            .configure_mesh()
+            .x_desc(plot.x_label)
+            .y_desc(plot.y_label)
+            .label_style((FONT, 14))
+            .axis_desc_style((FONT, 16))
+            .draw()
+            .map_err(|e| draw_err(e.to_string()))?;
+        for (i, s) in plot.series.iter().enumerate() {
+            let color = PALETTE[i % PALETTE.len()];
+            let style = if s.label == "system" {
+                ShapeStyle::from(&BLACK).stroke_width(3)
+            } else {
+                ShapeStyle::from(&color).stroke_width(2)
+            };
+            let legend_style = style;
+            chart
+                .draw_series(LineSeries::new(
+                    s.x.iter().zip(s.y).map(|(x, y)| (*x, *y)),
+                    style,
+                ))
+                .map_err(|e| draw_err(e.to_string()))?
+                .label(s.label)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], legend_style));
+        }
+        for m in &plot.markers {
+            let style = ShapeStyle::from(&RGBColor(90, 90, 90)).stroke_width(1);
+            chart
+                .draw_series(LineSeries::new(
+                    vec![(m.x, y_lo - pad), (m.x, y_hi + pad)],
+                    style,
+                ))
                 .map_err(|e| draw_err(e.to_string()))?;
             chart
-                .configure_mesh()
-                .x_desc(plot.x_label)
-                .y_desc(plot.y_label)
-                .label_style((FONT, 14))
-                .axis_desc_style((FONT, 16))
-                .draw()
+                .draw_series(std::iter::once(Text::new(
+                    m.label.to_string(),
+                    (m.x, y_hi + pad - 0.04 * (y_hi - y_lo + 2.0 * pad)),
+                    (FONT, 14).into_font().color(&RGBColor(60, 60, 60)),
+                )))
                 .map_err(|e| draw_err(e.to_string()))?;
-            for (i, s) in plot.series.iter().enumerate() {
-                let color = PALETTE[i % PALETTE.len()];
-                let style = if s.label == "system" {
-                    ShapeStyle::from(&BLACK).stroke_width(3)
-                } else {
-                    ShapeStyle::from(&color).stroke_width(2)
-                };
-                let legend_style = style;
-                chart
-                    .draw_series(LineSeries::new(
-                        s.x.iter().zip(s.y).map(|(x, y)| (*x, *y)),
-                        style,
-                    ))
-                    .map_err(|e| draw_err(e.to_string()))?
-                    .label(s.label)
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 20, y)], legend_style)
-                    });
-            }
-            for m in &plot.markers {
-                let style = ShapeStyle::from(&RGBColor(90, 90, 90)).stroke_width(1);
-                chart
-                    .draw_series(LineSeries::new(
-                        vec![(m.x, y_lo - pad), (m.x, y_hi + pad)],
-                        style,
-                    ))
-                    .map_err(|e| draw_err(e.to_string()))?;
-                chart
-                    .draw_series(std::iter::once(Text::new(
-                        m.label.to_string(),
-                        (m.x, y_hi + pad - 0.04 * (y_hi - y_lo + 2.0 * pad)),
-                        (FONT, 14).into_font().color(&RGBColor(60, 60, 60)),
-                    )))
-                    .map_err(|e| draw_err(e.to_string()))?;
-            }
+        }
+        if plot.series.len() > 1 || plot.series.iter().any(|s| !s.label.is_empty()) {
             chart
                 .configure_series_labels()
                 .label_font((FONT, 14))
@@ -154,20 +159,113 @@ pub fn write_line_plot(path: &Path, plot: &LinePlot<'_>) -> Result<()> {
                 .position(SeriesLabelPosition::UpperRight)
                 .draw()
                 .map_err(|e| draw_err(e.to_string()))?;
-            root.present().map_err(|e| draw_err(e.to_string()))?;
-            Ok(())
-        })();
-        match result {
-            Ok(()) if tmp_png != tmp => {
-                std::fs::rename(&tmp_png, tmp).map_err(|e| Error::io(tmp, e))
-            }
-            Ok(()) => Ok(()),
-            Err(e) => {
-                let _ = std::fs::remove_file(&tmp_png);
-                Err(e)
-            }
         }
-    })
+        root.present().map_err(|e| draw_err(e.to_string()))?;
+    }
+    crate::io::raster::encode_png(w as usize, h as usize, 3, &buf)
+}
+
+/// A histogram: counts per bin over contiguous bins.
+#[derive(Debug, Clone)]
+pub struct HistogramPlot<'a> {
+    /// Title above the plot.
+    pub title: &'a str,
+    /// Label of the x axis (the binned quantity and its unit).
+    pub x_label: &'a str,
+    /// Bin edges, ascending (`counts.len() + 1` values).
+    pub edges: &'a [f64],
+    /// Pixels per bin.
+    pub counts: &'a [u64],
+    /// Vertical markers (e.g. the display stretch limits, full scale).
+    pub markers: Vec<Marker<'a>>,
+    /// Image size in pixels (width, height).
+    pub size_px: (u32, u32),
+}
+
+/// Counts of `values` in `bins` equal bins over `[lo, hi]` (the top edge included in the
+/// last bin; values outside or non-finite are not counted). Returns `(edges, counts)`.
+pub fn histogram(
+    values: impl Iterator<Item = f64>,
+    lo: f64,
+    hi: f64,
+    bins: usize,
+) -> (Vec<f64>, Vec<u64>) {
+    let bins = bins.max(1);
+    let hi = if hi > lo { hi } else { lo + 1.0 };
+    let width = (hi - lo) / bins as f64;
+    let edges = (0..=bins).map(|i| lo + width * i as f64).collect();
+    let mut counts = vec![0u64; bins];
+    for v in values.filter(|v| v.is_finite() && *v >= lo && *v <= hi) {
+        let i = (((v - lo) / width) as usize).min(bins - 1);
+        counts[i] += 1;
+    }
+    (edges, counts)
+}
+
+/// Draws a histogram as filled bars and returns the PNG bytes.
+pub fn render_histogram(plot: &HistogramPlot<'_>) -> Result<Vec<u8>> {
+    ensure_font();
+    if plot.edges.len() != plot.counts.len() + 1 || plot.counts.is_empty() {
+        return Err(Error::param(
+            "histogram",
+            format!(
+                "{} edges for {} counts",
+                plot.edges.len(),
+                plot.counts.len()
+            ),
+            "one more edge than counts, at least one bin",
+        ));
+    }
+    let draw_err =
+        |e: String| Error::param("histogram", format!("cannot draw: {e}"), "a drawable plot");
+    let x_lo = plot.edges[0];
+    let x_hi = plot.edges[plot.edges.len() - 1];
+    let y_hi = plot.counts.iter().copied().max().unwrap_or(1).max(1) as f64 * 1.08;
+    let (w, h) = plot.size_px;
+    let mut buf = vec![255u8; w as usize * h as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| draw_err(e.to_string()))?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(plot.title, (FONT, 22))
+            .margin(12)
+            .x_label_area_size(45)
+            .y_label_area_size(70)
+            .build_cartesian_2d(x_lo..x_hi, 0.0..y_hi)
+            .map_err(|e| draw_err(e.to_string()))?;
+        chart
+            .configure_mesh()
+            .x_desc(plot.x_label)
+            .y_desc("pixels")
+            .x_label_formatter(&|v| format!("{v:.0}"))
+            .y_label_formatter(&|v| format!("{v:.0}"))
+            .light_line_style(RGBColor(245, 245, 245))
+            .label_style((FONT, 14))
+            .axis_desc_style((FONT, 16))
+            .draw()
+            .map_err(|e| draw_err(e.to_string()))?;
+        let fill = PALETTE[0].filled();
+        chart
+            .draw_series(plot.counts.iter().enumerate().map(|(i, c)| {
+                Rectangle::new([(plot.edges[i], 0.0), (plot.edges[i + 1], *c as f64)], fill)
+            }))
+            .map_err(|e| draw_err(e.to_string()))?;
+        for m in &plot.markers {
+            let style = ShapeStyle::from(&RGBColor(200, 40, 40)).stroke_width(1);
+            chart
+                .draw_series(LineSeries::new(vec![(m.x, 0.0), (m.x, y_hi)], style))
+                .map_err(|e| draw_err(e.to_string()))?;
+            chart
+                .draw_series(std::iter::once(Text::new(
+                    m.label.to_string(),
+                    (m.x, y_hi * 0.97),
+                    (FONT, 14).into_font().color(&RGBColor(160, 30, 30)),
+                )))
+                .map_err(|e| draw_err(e.to_string()))?;
+        }
+        root.present().map_err(|e| draw_err(e.to_string()))?;
+    }
+    crate::io::raster::encode_png(w as usize, h as usize, 3, &buf)
 }
 
 /// The finite minimum and maximum of an iterator, if any finite value exists.

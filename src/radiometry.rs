@@ -1,5 +1,5 @@
 //! Radiometry: Planck's law, adaptive quadrature and band integrals, the camera equation
-//! (DESIGN.md §4.1), and apparent-temperature inversion (DESIGN.md §4.9).
+//! (docs/design.md §4.1), and apparent-temperature inversion (docs/design.md §4.9).
 
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
@@ -426,7 +426,7 @@ pub fn band_photon_radiance_between(
 // Camera equation
 // ---------------------------------------------------------------------------------------
 
-/// The camera equation for an extended (pupil- and pixel-filling) source, DESIGN.md §4.1:
+/// The camera equation for an extended (pupil- and pixel-filling) source, docs/design.md §4.1:
 ///
 /// `electrons = t_int · A_det · π/(4N²) · (1 − R²) · [cos⁴θ] · ∫ τ(λ) η(λ) L_λ(λ) λ/(hc) dλ`
 ///
@@ -588,7 +588,7 @@ const LUT_MIN_NODES: usize = 65;
 const LUT_MAX_NODES: usize = 40_001;
 
 /// Inverse of a strictly increasing band response `value(T)` (band radiance, electrons,
-/// DN …) for apparent-temperature retrieval, DESIGN.md §4.9.
+/// DN …) for apparent-temperature retrieval, docs/design.md §4.9.
 ///
 /// The response is tabulated on a fine temperature grid (≤ 0.25 K steps for ranges up to
 /// 10 000 K), inverted by monotone cubic Hermite interpolation (Fritsch–Carlson limited

@@ -1,12 +1,393 @@
-//! Figures of merit and plots of what the sensor does.
+//! What a run reports: the typed [`RunReport`] (written as `report.json`, printed by the
+//! CLI), assembled from what the stages return; and figures of merit of the sensor itself
+//! (MTF curves and their plots, the response-weighted mean wavelength).
+//!
+//! The report structs are plain data with `Serialize`; their field names are the JSON keys.
 
+use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::Path;
 
+use ndarray::Array2;
+use serde::Serialize;
+
+use crate::detector::DetectorModel;
 use crate::error::{Error, Result};
+use crate::imaging::{ImagingStats, Sampling};
 use crate::plot::{self, LinePlot, Marker, Series};
 use crate::radiometry;
-use crate::sensor::{SensorConfig, SystemOtf};
+use crate::scene::{CubeMeta, Geometry};
+use crate::sensor::Sensor;
+
+/// Everything one run reports (`report.json`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunReport {
+    /// The preset options chosen (`name = value`).
+    pub options: BTreeMap<String, String>,
+    /// Lens and system figures of merit.
+    pub optics: OpticsReport,
+    /// Version of eoir that made the run.
+    pub eoir_version: String,
+    /// Sensor name.
+    pub sensor: String,
+    /// Seed of every random effect.
+    pub seed: u64,
+    /// The input cube.
+    pub input: InputReport,
+    /// How the scene grid maps onto the detector.
+    pub sampling: SamplingReport,
+    /// The detector model as used (gain after any auto gain).
+    pub detector: DetectorReport,
+    /// Signal statistics of the first frame.
+    pub signal: SignalReport,
+    /// Radiometric calibration (thermal sensors); `null` when not done.
+    pub calibration: Option<CalibrationReport>,
+    /// Warnings collected on the way.
+    pub warnings: Vec<String>,
+    /// Wall-clock seconds per stage.
+    pub timings_s: Timings,
+}
+
+/// `optics` of the report.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OpticsReport {
+    /// Effective focal length, m.
+    pub focal_length_m: f64,
+    /// F-number.
+    pub f_number: f64,
+    /// Detector IFOV (pitch / focal length), µrad.
+    pub ifov_urad: f64,
+    /// Full field of view (horizontal, vertical), degrees.
+    pub fov_deg: [f64; 2],
+    /// Response-weighted mean wavelength, µm ([`mean_wavelength_um`]).
+    pub mean_wavelength_um: Option<f64>,
+    /// λ·N/p at the mean wavelength (the Q of the optics–detector match).
+    pub lambda_f_number_over_pitch: Option<f64>,
+    /// The system transfer function at the detector Nyquist frequency (along x) at the
+    /// mean wavelength.
+    pub mtf_at_nyquist: Option<f64>,
+    /// Names of the enabled transfer-function components, in cascade order.
+    pub components: Vec<String>,
+}
+
+/// `input` of the report.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct InputReport {
+    /// Where the input came from.
+    pub name: String,
+    /// Bands in the input.
+    pub bands: usize,
+    /// Bands with a non-zero weight (read and transformed).
+    pub bands_used: usize,
+    /// First and last band wavelength, µm.
+    pub wavelength_um: [Option<f64>; 2],
+    /// Input rows.
+    pub rows: usize,
+    /// Input columns.
+    pub cols: usize,
+    /// Frames produced.
+    pub frames: usize,
+    /// Radiance units of the input.
+    pub units: String,
+    /// Where the units came from: `override: …`, `stated: <key> = <value>` or
+    /// `assumed: <the reader's documented rule>` ([`crate::io::CubeReader::units_source`]).
+    pub units_source: String,
+    /// Scene field of view (horizontal, vertical), degrees.
+    pub fov_deg: [f64; 2],
+}
+
+/// `sampling` of the report.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SamplingReport {
+    /// Detector IFOV, µrad.
+    pub detector_ifov_urad: f64,
+    /// Scene sample spacing (x, y), µrad.
+    pub scene_ifov_urad: [f64; 2],
+    /// Scene samples per detector pixel along x.
+    pub ratio_x: f64,
+    /// Scene samples per detector pixel along y.
+    pub ratio_y: f64,
+    /// How the detector samples the blurred image.
+    pub method: String,
+    /// FFT padding before the scene (x, y), scene samples.
+    pub pad_px: [usize; 2],
+    /// Padded FFT frame (x, y).
+    pub padded_shape: [usize; 2],
+    /// Wrap-around tolerance that set the padding.
+    pub wrap_tolerance: f64,
+}
+
+/// `detector` of the report.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DetectorReport {
+    /// Pixel rows.
+    pub rows: usize,
+    /// Pixel columns.
+    pub cols: usize,
+    /// Conversion gain K in use, DN/e-.
+    pub gain_dn_per_e: f64,
+    /// The auto-gain reference and its signal electrons, when K came from one.
+    pub auto_gain_reference: Option<String>,
+    /// Black level, DN.
+    pub offset_dn: f64,
+    /// ADC bits.
+    pub bits: u32,
+    /// Full well, electrons.
+    pub full_well_e: f64,
+    /// Mean dark electrons per frame.
+    pub dark_e: f64,
+    /// Mean optics self-emission electrons per frame.
+    pub background_e: f64,
+    /// Read noise, electrons rms.
+    pub read_noise_e: f64,
+    /// Whether shot noise is drawn.
+    pub shot_noise: bool,
+    /// Whether fixed-pattern noise is on.
+    pub fpn: bool,
+    /// Whether the nonlinearity is on.
+    pub nonlinearity: bool,
+    /// Whether defects are on.
+    pub defects: bool,
+}
+
+/// `signal` of the report (first frame).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SignalReport {
+    /// Mean noise-free signal electrons per pixel.
+    pub mean_electrons: f64,
+    /// Mean DN.
+    pub mean_dn: f64,
+    /// Pixels at full well or full scale, %.
+    pub saturated_percent: f64,
+    /// Expected temporal noise at the mean signal, electrons rms.
+    pub temporal_noise_e: f64,
+    /// mean_electrons / temporal_noise_e (`null` for a noiseless sensor).
+    pub snr: f64,
+}
+
+/// `calibration` of the report (thermal sensors).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CalibrationReport {
+    /// Degree of the per-pixel NUC polynomial.
+    pub nuc_degree: usize,
+    /// Blackbody temperatures of the calibration levels, K.
+    pub temperatures_k: Vec<f64>,
+    /// Frames averaged per level.
+    pub frames_per_level: usize,
+    /// Pixels flagged bad.
+    pub bad_pixels: usize,
+    /// Residual non-uniformity of a flat field between the levels.
+    pub residual_nonuniformity: ResidualNonuniformity,
+    /// Analytic NETD at 300 K, K.
+    pub netd_analytic_k_at_300k: Option<f64>,
+    /// NETD measured from simulated frame stacks at 300 K, K.
+    pub netd_measured_k_at_300k: Option<f64>,
+    /// Pixels of all frames that could not be inverted to a temperature (NaN).
+    pub uninvertible_pixels: usize,
+    /// What "radiance" means in the products.
+    pub radiance_definition: String,
+}
+
+/// σ/mean of a flat field at `at_k`, raw and after NUC.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ResidualNonuniformity {
+    /// Flat-field temperature, K.
+    pub at_k: f64,
+    /// Raw σ/mean.
+    pub raw: f64,
+    /// σ/mean after NUC.
+    pub corrected: f64,
+    /// The temporal noise left in the frame average, σ_t / (μ √M): the floor under both
+    /// values (without fixed pattern the raw value sits on it, and the NUC adds its own
+    /// fit noise).
+    pub temporal_floor: f64,
+    /// What is measured, in words.
+    pub measured: String,
+}
+
+/// `timings_s` of the report, seconds.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct Timings {
+    /// Reading bands.
+    pub read: f64,
+    /// Forward FFTs.
+    pub forward_fft: f64,
+    /// OTF evaluation and accumulation.
+    pub otf_and_accumulate: f64,
+    /// Inverse FFT and sampling.
+    pub inverse_and_sampling: f64,
+    /// Detector (electrons → DN).
+    pub detector: f64,
+    /// Calibration and the way back.
+    pub calibration: f64,
+    /// The whole run.
+    pub total: f64,
+}
+
+/// What the stages of a run hand to [`RunReport::assemble`].
+#[derive(Debug)]
+pub struct RunFacts<'a> {
+    /// The sensor.
+    pub sensor: &'a Sensor,
+    /// The detector model as exposed (K fixed).
+    pub model: &'a DetectorModel,
+    /// Seed of the run.
+    pub seed: u64,
+    /// Input name.
+    pub input_name: &'a str,
+    /// Input metadata.
+    pub meta: &'a CubeMeta,
+    /// Scene field of view used.
+    pub geometry: &'a Geometry,
+    /// Frames produced.
+    pub frames: usize,
+    /// Bands used by the imaging stage (summed over colour channels).
+    pub bands_used: usize,
+    /// Scene → detector sampling.
+    pub sampling: &'a Sampling,
+    /// Imaging timings and padded shape.
+    pub imaging: &'a ImagingStats,
+    /// Wrap-around tolerance of the run.
+    pub wrap_tolerance: f64,
+    /// Mean electrons of the first frame.
+    pub first_electrons: &'a Array2<f32>,
+    /// DN of the first frame.
+    pub first_dn: &'a Array2<u16>,
+    /// The calibration stage's report.
+    pub calibration: Option<CalibrationReport>,
+    /// Warnings collected.
+    pub warnings: Vec<String>,
+    /// Seconds in the detector stage.
+    pub detector_s: f64,
+    /// Seconds in the calibration stage.
+    pub calibration_s: f64,
+    /// Seconds of the whole run.
+    pub total_s: f64,
+}
+
+impl RunReport {
+    /// Assembles the report from what the stages returned. The signal statistics are
+    /// measured on the first frame: a pixel counts as saturated when its mean electrons
+    /// reach the full well or its DN the ADC maximum; the temporal noise is
+    /// [`DetectorModel::temporal_noise_e`] at the mean signal.
+    pub fn assemble(f: RunFacts) -> RunReport {
+        let sensor = f.sensor;
+        let d = &sensor.detector;
+        let n_px = f.first_dn.len() as f64;
+        let saturated = f
+            .first_electrons
+            .iter()
+            .zip(f.first_dn.iter())
+            .filter(|(e, dn)| **e as f64 >= d.full_well_e || **dn as f64 >= d.max_dn())
+            .count() as f64;
+        let mean_e = f.first_electrons.iter().map(|v| *v as f64).sum::<f64>() / n_px;
+        let noise_e = f.model.temporal_noise_e(mean_e);
+        let mean_dn = f.first_dn.iter().map(|v| *v as f64).sum::<f64>() / n_px;
+        let s = f.sampling;
+        let lambda_mean = mean_wavelength_um(sensor).ok();
+        let otf = sensor.otf();
+        let (fov_x, fov_y) = sensor.fov_deg();
+        RunReport {
+            options: sensor.selected_options.clone(),
+            optics: OpticsReport {
+                focal_length_m: sensor.optics.focal_length_m,
+                f_number: sensor.optics.f_number,
+                ifov_urad: sensor.ifov_rad() * 1e6,
+                fov_deg: [fov_x, fov_y],
+                mean_wavelength_um: lambda_mean,
+                lambda_f_number_over_pitch: lambda_mean
+                    .map(|l| l * 1e-6 * sensor.optics.f_number / d.pitch_m),
+                mtf_at_nyquist: lambda_mean
+                    .map(|l| otf.evaluate(sensor.nyquist_cy_per_rad(), 0.0, l)),
+                components: otf
+                    .components()
+                    .iter()
+                    .map(|c| c.name().to_string())
+                    .collect(),
+            },
+            eoir_version: env!("CARGO_PKG_VERSION").to_string(),
+            sensor: sensor.name.clone(),
+            seed: f.seed,
+            input: InputReport {
+                name: f.input_name.to_string(),
+                bands: f.meta.bands(),
+                bands_used: f.bands_used,
+                wavelength_um: [
+                    f.meta.wavelength_um.first().copied(),
+                    f.meta.wavelength_um.last().copied(),
+                ],
+                rows: f.meta.rows,
+                cols: f.meta.cols,
+                frames: f.frames,
+                units: f.meta.units.as_str().to_string(),
+                units_source: String::new(),
+                fov_deg: [f.geometry.fov_x_deg, f.geometry.fov_y_deg],
+            },
+            sampling: SamplingReport {
+                detector_ifov_urad: sensor.ifov_rad() * 1e6,
+                scene_ifov_urad: [s.scene_ifov_rad.1 * 1e6, s.scene_ifov_rad.0 * 1e6],
+                ratio_x: s.x.ratio,
+                ratio_y: s.y.ratio,
+                method: if s.integer {
+                    "integer decimation (phase-ramp centring, point sampling)"
+                } else {
+                    "band-limited resampling (trigonometric interpolation)"
+                }
+                .to_string(),
+                pad_px: [s.x.pad_before, s.y.pad_before],
+                padded_shape: [f.imaging.padded_shape.1, f.imaging.padded_shape.0],
+                wrap_tolerance: f.wrap_tolerance,
+            },
+            detector: DetectorReport {
+                rows: d.rows,
+                cols: d.cols,
+                gain_dn_per_e: f.model.gain_dn_per_e(),
+                auto_gain_reference: f
+                    .model
+                    .auto_gain_reference()
+                    .map(|(r, e)| format!("{r:?}: {e:.6e} e-")),
+                offset_dn: d.offset_dn,
+                bits: d.bits,
+                full_well_e: d.full_well_e,
+                dark_e: f.model.dark_e(),
+                background_e: f.model.background_e(),
+                read_noise_e: f.model.read_noise_e(),
+                shot_noise: f.model.shot_noise(),
+                fpn: d.fpn.is_some(),
+                nonlinearity: d.nonlinearity.is_some(),
+                defects: d.defects.is_some(),
+            },
+            signal: SignalReport {
+                mean_electrons: mean_e,
+                mean_dn,
+                saturated_percent: 100.0 * saturated / n_px,
+                temporal_noise_e: noise_e,
+                snr: if noise_e > 0.0 {
+                    mean_e / noise_e
+                } else {
+                    f64::INFINITY
+                },
+            },
+            calibration: f.calibration,
+            warnings: f.warnings,
+            timings_s: Timings {
+                read: f.imaging.read_s,
+                forward_fft: f.imaging.fft_s,
+                otf_and_accumulate: f.imaging.otf_s,
+                inverse_and_sampling: f.imaging.inverse_s,
+                detector: f.detector_s,
+                calibration: f.calibration_s,
+                total: f.total_s,
+            },
+        }
+    }
+
+    /// The report as pretty-printed JSON (non-finite numbers become `null`).
+    pub fn to_json_pretty(&self) -> Result<String> {
+        serde_json::to_string_pretty(self)
+            .map_err(|e| Error::param("report", "not serialisable", e.to_string()))
+    }
+}
 
 /// MTF curves along the x (column) frequency axis: one per enabled component and the
 /// system product, at one wavelength.
@@ -32,7 +413,7 @@ impl MtfCurves {
     /// 0 to `max_cy_per_mrad` (default: the larger of the optical cutoff and twice the
     /// detector Nyquist).
     pub fn compute(
-        sensor: &SensorConfig,
+        sensor: &Sensor,
         wavelength_um: f64,
         max_cy_per_mrad: Option<f64>,
         points: usize,
@@ -47,7 +428,7 @@ impl MtfCurves {
         if points < 2 {
             return Err(Error::param("--points", points, "at least 2"));
         }
-        let otf = SystemOtf::new(sensor)?;
+        let otf = sensor.otf();
         let nyquist = sensor.nyquist_cy_per_rad() * 1e-3;
         let cutoff = otf.cutoff_cy_per_rad(wavelength_um) * 1e-3;
         let f_max = match max_cy_per_mrad {
@@ -113,6 +494,12 @@ impl MtfCurves {
 
     /// Plots the curves as a PNG with the detector Nyquist frequency marked.
     pub fn write_png(&self, path: &Path, sensor_name: &str) -> Result<()> {
+        let bytes = self.render_png(sensor_name)?;
+        crate::display::write_png_bytes(path, &bytes)
+    }
+
+    /// The plot of [`MtfCurves::write_png`] as PNG bytes.
+    pub fn render_png(&self, sensor_name: &str) -> Result<Vec<u8>> {
         let title = format!(
             "{sensor_name}: transfer functions at {:.3} µm",
             self.wavelength_um
@@ -131,28 +518,25 @@ impl MtfCurves {
             .iter()
             .flat_map(|(_, v)| v.iter().copied())
             .fold(0.0f64, f64::min);
-        plot::write_line_plot(
-            path,
-            &LinePlot {
-                title: &title,
-                x_label: "spatial frequency (cycles/mrad)",
-                y_label: "transfer function",
-                series,
-                markers: vec![Marker {
-                    label: "Nyquist",
-                    x: self.nyquist_cy_per_mrad,
-                }],
-                y_range: Some((y_min.min(0.0) - 0.02, 1.05)),
-                size_px: (900, 600),
-            },
-        )
+        plot::render_line_plot(&LinePlot {
+            title: &title,
+            x_label: "spatial frequency (cycles/mrad)",
+            y_label: "transfer function",
+            series,
+            markers: vec![Marker {
+                label: "Nyquist",
+                x: self.nyquist_cy_per_mrad,
+            }],
+            y_range: Some((y_min.min(0.0) - 0.02, 1.05)),
+            size_px: (900, 600),
+        })
     }
 }
 
 /// The response-weighted mean wavelength of a sensor, ∫λ S dλ / ∫S dλ over the support of
 /// its spectral response S (µm): the default wavelength for single-wavelength reports.
-pub fn mean_wavelength_um(sensor: &SensorConfig) -> Result<f64> {
-    let s = sensor.spectral_response()?;
+pub fn mean_wavelength_um(sensor: &Sensor) -> Result<f64> {
+    let s = sensor.response();
     let (lo, hi) = s.support_um();
     if !(lo.is_finite() && hi.is_finite() && hi > lo) {
         return Err(Error::param(

@@ -10,9 +10,11 @@
 //! Domain: every spectrum is defined for wavelengths λ > 0. [`Spectrum::eval`] returns 0 for
 //! λ ≤ 0 and NaN for a NaN wavelength.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{require_non_negative, Error, Result};
 
 /// Number of standard deviations at which a Gaussian is truncated: exp(−8.5²/2) ≈ 2.0e-16,
 /// so the truncated tail changes the curve by ~1e-16 relative to its peak.
@@ -257,7 +259,7 @@ impl Spectrum {
     /// and the offending text; table rules (increasing λ > 0, finite values ≥ 0, ≥ 2 rows)
     /// are checked with line numbers too.
     pub fn from_csv(path: &Path) -> Result<Spectrum> {
-        let text = crate::io::input::read_text(path)?;
+        let text = crate::input::read_text(path)?;
         let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
         let mut wavelength_um = Vec::new();
         let mut value = Vec::new();
@@ -680,4 +682,128 @@ pub fn require_fraction(field: &str, s: Spectrum) -> Result<Spectrum> {
         ));
     }
     Ok(s)
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// A spectral curve as written in a sensor file, selected by `kind`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SpectrumConfig {
+    /// The same value at every wavelength.
+    Constant {
+        /// The value (e.g. a transmission in [0, 1]).
+        value: f64,
+    },
+    /// A band-pass with 50 % points at `lo_um` and `hi_um` and linear edges.
+    TopHat {
+        /// Lower 50 % wavelength, µm.
+        lo_um: f64,
+        /// Upper 50 % wavelength, µm.
+        hi_um: f64,
+        /// Full width of each linear edge, µm (0 = sharp).
+        #[serde(default)]
+        edge_width_um: f64,
+        /// In-band value.
+        #[serde(default = "one")]
+        peak: f64,
+    },
+    /// A Gaussian response.
+    Gaussian {
+        /// Centre wavelength, µm.
+        center_um: f64,
+        /// Full width at half maximum, µm.
+        fwhm_um: f64,
+        /// Peak value.
+        #[serde(default = "one")]
+        peak: f64,
+    },
+    /// Quantum efficiency of an ideal photon detector: `peak` electrons per photon up to
+    /// the cutoff, 0 above.
+    IdealQe {
+        /// Quantum efficiency below the cutoff.
+        peak: f64,
+        /// Cutoff wavelength, µm.
+        cutoff_um: f64,
+    },
+    /// Relative responsivity per unit power of an ideal photon detector, `peak · λ/λc`
+    /// below the cutoff (the report's R_rel(λ)). Not valid as `quantum_efficiency`, which
+    /// counts electrons per photon: use `ideal_qe` there.
+    PhotonDetector {
+        /// Quantum efficiency at the cutoff wavelength.
+        peak: f64,
+        /// Cutoff wavelength, µm.
+        cutoff_um: f64,
+    },
+    /// A table given inline (linear interpolation, zero outside).
+    Table {
+        /// Wavelengths, µm, strictly increasing.
+        wavelength_um: Vec<f64>,
+        /// Values at those wavelengths.
+        value: Vec<f64>,
+    },
+    /// A two-column CSV file (µm, value), relative to the sensor file's directory.
+    Csv {
+        /// Path of the CSV file.
+        path: PathBuf,
+    },
+}
+
+impl SpectrumConfig {
+    /// Builds the spectrum, resolving relative paths against `base_dir` and naming `field`
+    /// in errors.
+    pub fn build(&self, base_dir: &Path, field: &str) -> Result<Spectrum> {
+        let named = |e: Error| match e {
+            Error::InvalidParameter {
+                field: f,
+                value,
+                expected,
+            } => Error::InvalidParameter {
+                field: format!("{field}.{f}"),
+                value,
+                expected,
+            },
+            other => other,
+        };
+        match self {
+            SpectrumConfig::Constant { value } => {
+                require_non_negative(&format!("{field}.value"), *value)?;
+                Ok(Spectrum::constant(*value))
+            }
+            SpectrumConfig::TopHat {
+                lo_um,
+                hi_um,
+                edge_width_um,
+                peak,
+            } => Spectrum::top_hat(*lo_um, *hi_um, *edge_width_um, *peak).map_err(named),
+            SpectrumConfig::Gaussian {
+                center_um,
+                fwhm_um,
+                peak,
+            } => Spectrum::gaussian(*center_um, *fwhm_um, *peak).map_err(named),
+            SpectrumConfig::IdealQe { peak, cutoff_um } => {
+                Spectrum::ideal_quantum_efficiency(*peak, *cutoff_um).map_err(named)
+            }
+            SpectrumConfig::PhotonDetector { peak, cutoff_um } => {
+                Spectrum::photon_detector(*peak, *cutoff_um).map_err(named)
+            }
+            SpectrumConfig::Table {
+                wavelength_um,
+                value,
+            } => Spectrum::table(wavelength_um.clone(), value.clone()).map_err(named),
+            SpectrumConfig::Csv { path } => Spectrum::from_csv(&resolve_path(base_dir, path)),
+        }
+    }
+}
+
+/// Resolves `path` against `base_dir` unless it is absolute (relative paths in a sensor file
+/// are relative to the file's directory).
+pub(crate) fn resolve_path(base_dir: &Path, path: &Path) -> PathBuf {
+    if path.is_absolute() {
+        path.to_path_buf()
+    } else {
+        base_dir.join(path)
+    }
 }

@@ -2,7 +2,12 @@
 
 use anyhow::{bail, Context, Result};
 
+pub mod characterize;
+pub mod edge_mtf;
 pub mod mtf;
+pub mod nuc;
+pub mod progress;
+pub mod restore;
 pub mod run;
 pub mod sensors;
 

@@ -1,18 +1,16 @@
 //! CLI glue for `eoir run`, `eoir demo` and `eoir scene`.
 
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use indicatif::{ProgressBar, ProgressStyle};
 
 use eoir::calibration::{Calibration, CalibrationOptions};
-use eoir::detector::{DetectorInstance, DetectorModel};
+use eoir::detector::DetectorInstance;
 use eoir::io::output::ProductSet;
 use eoir::pipeline::{self, RunOptions};
 use eoir::scene::synthetic::{self, SceneParams};
 use eoir::scene::Geometry;
-use eoir::sensor::{presets, SensorConfig};
+use eoir::sensor::{presets, Sensor, SensorConfig};
 
 /// How a command names its sensor: a file or preset, options and overrides.
 #[derive(Debug, Clone, clap::Args)]
@@ -29,10 +27,20 @@ pub struct SensorArgs {
 }
 
 impl SensorArgs {
-    /// Loads the sensor these arguments name.
-    pub fn load(&self) -> Result<SensorConfig> {
+    /// Loads the configuration of the sensor these arguments name.
+    pub fn load_config(&self) -> Result<SensorConfig> {
         Ok(presets::load(&self.sensor, &self.option, &self.set)?)
     }
+
+    /// Loads and resolves the sensor these arguments name.
+    pub fn load(&self) -> Result<Sensor> {
+        build(&self.load_config()?)
+    }
+}
+
+/// Resolves a sensor configuration (reads the files it refers to), naming it in errors.
+fn build(config: &SensorConfig) -> Result<Sensor> {
+    Sensor::build(config).with_context(|| format!("resolving sensor `{}`", config.name))
 }
 
 /// Arguments of `eoir run`.
@@ -58,9 +66,13 @@ pub struct RunArgs {
     /// OUTDIR/channel-<value>/ and write a false-colour composite OUTDIR/composite.png.
     #[arg(long)]
     composite: bool,
-    /// Scene field of view `H,V` in degrees, if the input file does not give one.
+    /// Scene field of view `H,V` in degrees; wins over any field of view in the file.
     #[arg(long, value_name = "H,V")]
     fov_deg: Option<String>,
+    /// Radiance units of the input, overriding what the file states, e.g.
+    /// `"W m-2 sr-1 nm-1"`, `"uW cm-2 sr-1 nm-1"` (AVIRIS), `"W/(m2 sr um)"`.
+    #[arg(long, value_name = "UNITS")]
+    radiance_units: Option<String>,
     /// No progress bar or summary.
     #[arg(long)]
     quiet: bool,
@@ -140,81 +152,73 @@ pub struct SceneArgs {
     angle_deg: f64,
 }
 
-fn progress_bar(quiet: bool, what: &str) -> Option<ProgressBar> {
-    if quiet || !std::io::stderr().is_terminal() {
-        return None;
-    }
-    let pb = ProgressBar::new(1);
-    if let Ok(style) =
-        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} bands ({elapsed})")
-    {
-        pb.set_style(style.progress_chars("=> "));
-    }
-    pb.set_message(what.to_string());
-    Some(pb)
-}
-
 /// Runs the input through the sensor, writing the products.
 fn run_file(
-    sensor: &SensorConfig,
+    sensor: &Sensor,
     input: &Path,
     output: &Path,
     mut options: RunOptions,
+    read: &eoir::io::ReadOptions,
     quiet: bool,
 ) -> Result<pipeline::RunOutput> {
-    let mut reader = eoir::io::open(input)?;
-    let pb = progress_bar(quiet, "imaging");
+    let mut reader = eoir::io::open_with(input, read)?;
+    // Calibration exposures: the NUC levels, the non-uniformity check, the measured NETD
+    // (two stacks), each of frames_per_level frames.
+    let calibration_exposures = match &options.calibration {
+        Some(c) if sensor.is_thermal() => {
+            ((c.temperatures_k.len() + 3) * c.frames_per_level) as u64
+        }
+        _ => 0,
+    };
+    let mut progress = crate::cli::progress::RunProgress::new(
+        quiet,
+        reader.frames().max(options.frames),
+        calibration_exposures,
+    );
     options.input_name = input.display().to_string();
     let out = pipeline::run(sensor, reader.as_mut(), &options, |done, total| {
-        if let Some(pb) = &pb {
-            pb.set_length(total as u64);
-            pb.set_position(done as u64);
-        }
+        progress.imaging(done, total)
     })?;
-    if let Some(pb) = pb {
-        pb.finish_and_clear();
-    }
+    progress.writing();
+    out.write(output)?;
+    progress.finish();
     for w in &out.warnings {
         eprintln!("warning: {w}");
     }
-    out.write(output)?;
     if !quiet {
         let r = &out.report;
-        let f = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
-        let opts = r["options"]
-            .as_object()
-            .map(|o| {
-                o.iter()
-                    .map(|(k, v)| format!("{k}={}", v.as_str().unwrap_or("")))
-                    .collect::<Vec<_>>()
-                    .join(" ")
-            })
-            .unwrap_or_default();
+        let opts = r
+            .options
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect::<Vec<_>>()
+            .join(" ");
+        let f = |v: Option<f64>| v.unwrap_or(f64::NAN);
         println!(
             "{} {opts} (seed {}): {} x {} px, F/{:.2}, IFOV {:.1} µrad, λF#/pitch {:.2}, MTF at Nyquist {:.3}",
             sensor.name,
-            r["seed"],
+            r.seed,
             sensor.detector.cols,
             sensor.detector.rows,
-            f(&r["optics"]["f_number"]),
-            f(&r["optics"]["ifov_urad"]),
-            f(&r["optics"]["lambda_f_number_over_pitch"]),
-            f(&r["optics"]["mtf_at_nyquist"]),
+            r.optics.f_number,
+            r.optics.ifov_urad,
+            f(r.optics.lambda_f_number_over_pitch),
+            f(r.optics.mtf_at_nyquist),
         );
         println!(
             "  sampling {:.3} scene px per detector px ({}); K = {:.4} DN/e-; signal {:.4e} e-, noise {:.4e} e-, SNR {:.1}; saturated {:.2} %{}; {:.2} s",
-            f(&r["sampling"]["ratio_x"]),
-            r["sampling"]["method"].as_str().unwrap_or(""),
-            f(&r["detector"]["gain_dn_per_e"]),
-            f(&r["signal"]["mean_electrons"]),
-            f(&r["signal"]["temporal_noise_e"]),
-            f(&r["signal"]["snr"]),
-            f(&r["signal"]["saturated_percent"]),
-            match r["calibration"]["netd_analytic_k_at_300k"].as_f64() {
+            r.sampling.ratio_x,
+            r.sampling.method,
+            r.detector.gain_dn_per_e,
+            r.signal.mean_electrons,
+            r.signal.temporal_noise_e,
+            r.signal.snr,
+            r.signal.saturated_percent,
+            match r.calibration.as_ref().and_then(|c| c.netd_analytic_k_at_300k) {
                 Some(n) => format!("; NETD {:.1} mK at 300 K", n * 1e3),
                 None => String::new(),
             },
-            f(&r["timings_s"]["total"]),
+            r.timings_s.total,
         );
     }
     Ok(out)
@@ -275,11 +279,11 @@ pub fn temperature(args: TemperatureArgs) -> Result<()> {
             sensor.name
         );
     }
-    let model = DetectorModel::from_config(&sensor)?;
-    let instance = DetectorInstance::new(&model, args.seed)?;
+    let model = sensor.detector();
+    let instance = DetectorInstance::new(model, args.seed)?;
     let cal = Calibration::new(
         &sensor,
-        &model,
+        model,
         &instance,
         &calibration_options(args.nuc_degree)?,
     )?;
@@ -335,6 +339,9 @@ pub fn run(args: RunArgs) -> Result<()> {
     if args.frames == 0 {
         bail!("--frames 0: at least one frame is needed");
     }
+    let read = eoir::io::ReadOptions {
+        radiance_units: args.radiance_units.clone(),
+    };
     let options = RunOptions {
         seed: args.seed,
         geometry,
@@ -345,7 +352,14 @@ pub fn run(args: RunArgs) -> Result<()> {
     if !args.composite {
         let sensor = args.sensor.load()?;
         let set = ProductSet::begin(&args.output)?;
-        run_file(&sensor, &args.input, set.staging_dir(), options, args.quiet)?;
+        run_file(
+            &sensor,
+            &args.input,
+            set.staging_dir(),
+            options,
+            &read,
+            args.quiet,
+        )?;
         print_written(&set.commit()?, args.quiet);
         return Ok(());
     }
@@ -382,7 +396,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         opts.push(format!("channel={ch}"));
         let sensor = presets::load(&args.sensor.sensor, &opts, &args.sensor.set)?;
         sensors.push((
-            eoir::report::mean_wavelength_um(&sensor)?,
+            eoir::report::mean_wavelength_um(&build(&sensor)?)?,
             ch.clone(),
             sensor,
         ));
@@ -397,14 +411,15 @@ pub fn run(args: RunArgs) -> Result<()> {
             sensor.detector.gain_dn_per_e = Some(k);
         }
         let out = run_file(
-            &sensor,
+            &build(&sensor)?,
             &args.input,
             &set.staging_dir().join(format!("channel-{ch}")),
             options.clone(),
+            &read,
             args.quiet,
         )?;
         if shared_gain.is_none() {
-            shared_gain = out.report["detector"]["gain_dn_per_e"].as_f64();
+            shared_gain = Some(out.report.detector.gain_dn_per_e);
         }
         outs.push((lambda, out));
     }
@@ -430,8 +445,7 @@ pub fn demo(args: DemoArgs) -> Result<()> {
     if args.oversampling == 0 {
         bail!("--oversampling must be at least 1");
     }
-    let response = sensor.spectral_response()?;
-    let (lo, hi) = response.support_um();
+    let (lo, hi) = sensor.response().support_um();
     if !(lo.is_finite() && hi.is_finite()) {
         bail!(
             "sensor `{}` has an unbounded spectral response; give it a [filter]",
@@ -474,6 +488,7 @@ pub fn demo(args: DemoArgs) -> Result<()> {
             seed: args.seed,
             ..Default::default()
         },
+        &eoir::io::ReadOptions::default(),
         args.quiet,
     )?;
     print_written(&set.commit()?, args.quiet);

@@ -2,8 +2,9 @@
 //! and their validation.
 //!
 //! Every effect is off when its key or table is absent (shot noise excepted: it is on
-//! unless `shot_noise = false`). The types live here, next to the model that uses them;
-//! [`crate::sensor::config::DetectorConfig`] holds them as optional fields.
+//! unless `shot_noise = false`). The whole `[detector]` table ([`DetectorConfig`]) lives here,
+//! next to the model that uses it; [`crate::sensor::SensorConfig`] holds it as its `detector`
+//! field. This module depends on nothing in `sensor` but the [`SpectrumConfig`] leaf type.
 //!
 //! ```toml
 //! [detector]
@@ -44,10 +45,111 @@ use serde::{Deserialize, Serialize};
 
 use crate::constants::BOLTZMANN_K;
 use crate::error::{require_in_range, require_non_negative, require_positive, Error, Result};
-use crate::sensor::config::DetectorConfig;
+use crate::spectrum::SpectrumConfig;
 
 /// Elementary charge, C (SI 2019 exact): converts eV to J.
 const ELEMENTARY_CHARGE_C: f64 = 1.602_176_634e-19;
+
+/// `[detector]`: the focal-plane array and its electronics.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DetectorConfig {
+    /// Number of pixel rows.
+    pub rows: usize,
+    /// Number of pixel columns.
+    pub cols: usize,
+    /// Pixel pitch (centre-to-centre spacing), m, the same in x and y.
+    pub pitch_m: f64,
+    /// Photosensitive width of a pixel along x, m (≤ pitch).
+    pub active_width_m: f64,
+    /// Photosensitive height along y, m (defaults to `active_width_m`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub active_height_m: Option<f64>,
+    /// Integration (exposure) time, s.
+    pub integration_time_s: f64,
+    /// Quantum efficiency η(λ), electrons per photon.
+    pub quantum_efficiency: SpectrumConfig,
+    /// Full-well capacity, electrons.
+    #[serde(default = "default_full_well")]
+    pub full_well_e: f64,
+    /// ADC resolution, bits (1–16).
+    #[serde(default = "default_bits")]
+    pub bits: u32,
+    /// Conversion gain K, DN per electron. Omitted: chosen so that `full_well_e` maps to
+    /// full scale.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gain_dn_per_e: Option<f64>,
+    /// Black level (offset) added after conversion, DN.
+    #[serde(default)]
+    pub offset_dn: f64,
+    /// Constant dark current, electrons per second per pixel (absent or 0 = off).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dark_current_e_per_s: Option<f64>,
+    /// Temperature-dependent dark current instead of the constant (see
+    /// [`DarkModelConfig`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dark_model: Option<DarkModelConfig>,
+    /// Gaussian read noise, electrons rms (absent or 0 = off).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub read_noise_e: Option<f64>,
+    /// Poisson shot noise on signal + dark + background (absent = on).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shot_noise: Option<bool>,
+    /// Optics self-emission background (see [`BackgroundConfig`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub background: Option<BackgroundConfig>,
+    /// Fixed-pattern noise (see [`FpnConfig`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fpn: Option<FpnConfig>,
+    /// Per-pixel quadratic nonlinearity (see [`NonlinearityConfig`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nonlinearity: Option<NonlinearityConfig>,
+    /// Dead, hot and stuck pixels (see [`DefectsConfig`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub defects: Option<DefectsConfig>,
+    /// Conversion gain chosen from a reference scene (see
+    /// [`AutoGainConfig`]); excludes `gain_dn_per_e`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub auto_gain: Option<AutoGainConfig>,
+}
+
+fn default_full_well() -> f64 {
+    1.0e7
+}
+
+fn default_bits() -> u32 {
+    14
+}
+
+impl DetectorConfig {
+    /// Photosensitive height along y, m.
+    pub fn active_height(&self) -> f64 {
+        self.active_height_m.unwrap_or(self.active_width_m)
+    }
+
+    /// Fill factor = active area / pitch².
+    pub fn fill_factor(&self) -> f64 {
+        self.active_width_m * self.active_height() / (self.pitch_m * self.pitch_m)
+    }
+
+    /// Photosensitive area A_det, m².
+    pub fn active_area_m2(&self) -> f64 {
+        self.active_width_m * self.active_height()
+    }
+
+    /// Largest DN the ADC can output, 2^bits − 1.
+    pub fn max_dn(&self) -> f64 {
+        2f64.powi(self.bits as i32) - 1.0
+    }
+
+    /// Conversion gain K, DN/e-, before any auto gain: the configured value, or full well
+    /// → full scale. The gain in use is `DetectorModel::gain_dn_per_e` (which applies
+    /// `[detector.auto_gain]`).
+    pub fn manual_gain(&self) -> f64 {
+        self.gain_dn_per_e
+            .unwrap_or_else(|| (self.max_dn() - self.offset_dn) / self.full_well_e)
+    }
+}
 
 /// `[detector.dark_model]`: a temperature-dependent dark current, used instead of the
 /// constant `dark_current_e_per_s`. Selected by `kind`; every kind is scaled so that the
@@ -203,7 +305,7 @@ pub fn dark_rate_e_per_s(
 
 /// `[detector.background]`: self-emission of the (warm) optics and housing seen by the
 /// detector, modelled as a grey body of `emissivity` at `temperature_k` filling the
-/// optical cone. Its electrons are the camera equation (DESIGN.md §4.1) applied to
+/// optical cone. Its electrons are the camera equation (docs/design.md §4.1) applied to
 /// `ε·B(λ, T)` through the filter and the quantum efficiency only (the emitter sits inside
 /// the optics, so τ_optics and τ_atm do not attenuate it).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -1,11 +1,11 @@
 //! Dark and background electrons, and the automatic choice of the conversion gain K.
 
 use crate::error::{Error, Result};
+use crate::radiometry::CameraEquation;
 use crate::scene::synthetic::solar_spectral_irradiance;
-use crate::sensor::config::DetectorConfig;
-use crate::sensor::SensorConfig;
+use crate::spectrum::Spectrum;
 
-use super::config::{AutoGainConfig, AutoGainReference};
+use super::config::{AutoGainConfig, AutoGainReference, DetectorConfig};
 use super::{apply_nonlinearity, clip_full_well, DetectorModel};
 
 /// Upper edge of the spectral response, µm, at or below which [`AutoGainConfig`] uses the
@@ -31,29 +31,26 @@ pub(crate) fn dark_e_per_frame(d: &DetectorConfig) -> f64 {
 }
 
 /// Mean background electrons per pixel per frame from `[detector.background]` (0 when
-/// absent): the camera equation (DESIGN.md §4.1, same cone and obscuration as the scene)
-/// applied to the grey-body radiance `ε·B(λ, T)` through τ_filter(λ)·η(λ), without the
-/// optics and atmosphere transmissions (the emitter is the optics itself).
+/// absent): the camera equation (docs/design.md §4.1, same cone and obscuration as the
+/// scene) applied to the grey-body radiance `ε·B(λ, T)` through `filter_qe` =
+/// τ_filter(λ)·η(λ), without the optics and atmosphere transmissions (the emitter is the
+/// optics itself).
 ///
 /// Errors: a filter × QE product with unbounded support (e.g. both constant: the
 /// blackbody integral needs a band), or an invalid temperature.
-pub fn background_electrons(sensor: &SensorConfig) -> Result<f64> {
-    let Some(b) = &sensor.detector.background else {
+pub fn background_electrons(
+    d: &DetectorConfig,
+    filter_qe: &Spectrum,
+    camera: &CameraEquation,
+) -> Result<f64> {
+    let Some(b) = &d.background else {
         return Ok(0.0);
     };
     if b.emissivity == 0.0 {
         return Ok(0.0);
     }
-    let dir = &sensor.base_dir;
-    let response = sensor.filter.build(dir, "filter")?.product(
-        &sensor
-            .detector
-            .quantum_efficiency
-            .build(dir, "detector.quantum_efficiency")?,
-    );
-    let e = sensor
-        .camera_equation()?
-        .electrons_blackbody(b.temperature_k, &response)
+    let e = camera
+        .electrons_blackbody(b.temperature_k, filter_qe)
         .map_err(|e| {
             Error::param(
                 "detector.background",
@@ -69,7 +66,7 @@ pub fn background_electrons(sensor: &SensorConfig) -> Result<f64> {
 ///
 /// - [`AutoGainReference::Blackbody`]: a uniform blackbody at `reference_temperature_k`
 ///   through the whole spectral chain, `camera_equation.electrons_blackbody(T, response)`
-///   (DESIGN.md §4.1).
+///   (docs/design.md §4.1).
 /// - [`AutoGainReference::ReflectedSun`]: a Lambertian reflector of reflectance ρ lit by
 ///   the Sun at zenith angle θz, `L(λ) = ρ E₀(λ) cos θz / π`, with E₀ the solar spectral
 ///   irradiance of a 5772 K blackbody filling the solar disc (1361 W m-2 in total; see
@@ -79,22 +76,22 @@ pub fn background_electrons(sensor: &SensorConfig) -> Result<f64> {
 /// Omitted `reference`: reflected sun if the spectral response ends at or below
 /// [`REFLECTIVE_LIMIT_UM`], else the blackbody.
 pub fn reference_electrons(
-    sensor: &SensorConfig,
+    d: &DetectorConfig,
+    response: &Spectrum,
+    camera: &CameraEquation,
     config: &AutoGainConfig,
 ) -> Result<(AutoGainReference, f64)> {
-    let response = sensor.spectral_response()?;
     let (lo, hi) = response.support_um();
     let kind = config.reference.unwrap_or(if hi <= REFLECTIVE_LIMIT_UM {
         AutoGainReference::ReflectedSun
     } else {
         AutoGainReference::Blackbody
     });
-    let camera = sensor.camera_equation()?;
     let e = match kind {
         // Not known until the scene is imaged; the full well stands in until then.
-        AutoGainReference::SceneMean => sensor.detector.full_well_e,
+        AutoGainReference::SceneMean => d.full_well_e,
         AutoGainReference::Blackbody => camera
-            .electrons_blackbody(config.reference_temperature_k, &response)
+            .electrons_blackbody(config.reference_temperature_k, response)
             .map_err(|e| {
                 Error::param(
                     "detector.auto_gain",
@@ -111,7 +108,7 @@ pub fn reference_electrons(
                 let rho = config.reflectance;
                 let zenith = config.sun_zenith_deg;
                 camera.electrons_spectral(
-                    &response,
+                    response,
                     |w| rho * solar_spectral_irradiance(w, 1.0, zenith) / std::f64::consts::PI,
                     lo,
                     hi,
@@ -141,15 +138,4 @@ pub(crate) fn gain_for(model: &DetectorModel, fraction: f64, reference_e: f64) -
         ));
     }
     Ok(fraction * (model.max_dn - model.offset_dn) / e)
-}
-
-/// The auto-gain K of `sensor` for the reference scene `config` (see
-/// [`reference_electrons`] and [`super::DetectorModel::from_config`]): the reference
-/// signal plus dark and background electrons lands at `config.fraction` of
-/// `2^bits − 1 − offset_dn`. Any `gain_dn_per_e` in the sensor is ignored.
-pub fn auto_gain(sensor: &SensorConfig, config: &AutoGainConfig) -> Result<f64> {
-    let mut s = sensor.clone();
-    s.detector.gain_dn_per_e = None;
-    s.detector.auto_gain = Some(config.clone());
-    Ok(DetectorModel::from_config(&s)?.gain_dn_per_e())
 }

@@ -1,8 +1,10 @@
-//! The detector: mean photo-electrons per pixel → digital numbers (DESIGN.md §1).
+//! The detector: mean photo-electrons per pixel → digital numbers (docs/design.md §1).
 //!
-//! [`DetectorModel::from_config`] resolves and validates the `[detector]` section of a
-//! sensor (dark current, background, noise switches, loaded maps) and fixes the
-//! conversion gain K (configured, full well → full scale, or [`auto_gain`]).
+//! [`DetectorModel::build`] (called by [`crate::sensor::Sensor::build`], which validates the
+//! whole sensor first) resolves the `[detector]` table ([`DetectorConfig`]: dark current,
+//! background, noise switches, loaded maps) and fixes the conversion gain K (configured,
+//! full well → full scale, or `[detector.auto_gain]`; for `reference = "scene_mean"` the
+//! gain stays *pending* until the run knows the scene's mean signal).
 //! [`DetectorInstance::new`] draws the fixed-pattern maps of one physical sensor from a
 //! seed, and [`DetectorInstance::expose`] turns one frame of mean electrons (the output of
 //! [`crate::imaging`]) into DN. Per pixel, in this order (each step a small pure function
@@ -10,7 +12,7 @@
 //!
 //! 1. mean total `μ = max(signal, 0) + dark + background` electrons ([`mean_total_e`]);
 //! 2. shot noise: ONE Poisson draw of μ ([`shot`]; a sum of independent Poisson counts is
-//!    Poisson, DESIGN.md §1; FOI report eq. 2.24–2.28);
+//!    Poisson, docs/design.md §1; FOI report eq. 2.24–2.28);
 //! 3. full-well clip ([`clip_full_well`]; FOI report §2.2.2.1: a saturated pixel holds
 //!    μ_e,sat with no variance);
 //! 4. fixed pattern: `e·g + o` with the gain g (1 + PRNU) and offset o (DSNU, column, row,
@@ -21,10 +23,10 @@
 //! 8. ADC: round to the nearest integer, clip to [0, 2^bits − 1] ([`adc`]);
 //! 9. defects: dead → 0, hot → 2^bits − 1, stuck → a fixed random DN.
 //!
-//! Randomness follows DESIGN.md §3 (see the `rng` submodule): one seed, one stream per
-//! effect, per frame (temporal effects) and per row, so the fixed pattern is identical in
-//! every frame, switching one effect does not change another's realisation, the same seed
-//! gives bit-identical frames and the result does not depend on the number of threads.
+//! Randomness follows docs/design.md §3 (see the `rng` submodule): one seed, one stream per
+//! effect, per exposure and frame (temporal effects) and per row, so the fixed pattern is
+//! identical in every frame, switching one effect does not change another's realisation,
+//! the same seed gives bit-identical frames and the result does not depend on the number of threads.
 //!
 //! The expected temporal noise for a mean signal (for NETD and SNR) is
 //! [`DetectorModel::temporal_noise_e`] / [`DetectorModel::temporal_noise_dn`].
@@ -43,16 +45,16 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::io::raster;
-use crate::sensor::config::resolve;
-use crate::sensor::SensorConfig;
+use crate::radiometry::CameraEquation;
+use crate::spectrum::{resolve_path as resolve, Spectrum};
 
 pub use config::{
-    AutoGainConfig, AutoGainReference, BackgroundConfig, DarkModelConfig, DefectsConfig, FpnConfig,
-    NonlinearityConfig,
+    AutoGainConfig, AutoGainReference, BackgroundConfig, DarkModelConfig, DefectsConfig,
+    DetectorConfig, FpnConfig, NonlinearityConfig,
 };
-pub use gain::{auto_gain, background_electrons, reference_electrons, REFLECTIVE_LIMIT_UM};
+pub use gain::{background_electrons, reference_electrons, REFLECTIVE_LIMIT_UM};
 
-use rng::{stream, Effect};
+use rng::{temporal_stream, Effect};
 
 /// Standard deviations above the full well beyond which a Poisson draw can no longer fall
 /// below it (probability < 1e-300); such pixels are set to the full well without drawing.
@@ -95,6 +97,7 @@ pub struct DetectorModel {
     max_dn: f64,
     offset_dn: f64,
     gain_dn_per_e: f64,
+    integration_time_s: f64,
     dark_e: f64,
     background_e: f64,
     shot_noise: bool,
@@ -106,21 +109,40 @@ pub struct DetectorModel {
     defects: Option<config::DefectsConfig>,
     defect_file: Option<Array2<u8>>,
     auto_gain_reference: Option<(AutoGainReference, f64)>,
+    scene_gain_pending: Option<f64>,
     warnings: Vec<String>,
 }
 
+/// What the detector model needs from the rest of a sensor, resolved once by
+/// [`crate::sensor::Sensor::build`].
+#[derive(Debug, Clone, Copy)]
+pub struct DetectorInputs<'a> {
+    /// The whole spectral chain τ_filter·τ_optics·τ_atm·η (auto-gain references).
+    pub response: &'a Spectrum,
+    /// τ_filter·η only: what the optics' own emission passes (`[detector.background]`).
+    pub filter_qe: &'a Spectrum,
+    /// The camera equation of the sensor (docs/design.md §4.1).
+    pub camera: &'a CameraEquation,
+    /// Directory that relative map paths (`fpn.gain_map`, …) are resolved against.
+    pub base_dir: &'a Path,
+}
+
 impl DetectorModel {
-    /// Resolves the `[detector]` section of `sensor`: validates it, computes the dark and
+    /// Resolves the (already validated) `[detector]` table `d`: computes the dark and
     /// background electrons per frame, loads measured maps (paths relative to
-    /// `sensor.base_dir`) and fixes the conversion gain: `gain_dn_per_e` if given, else
-    /// [`auto_gain`] if `[detector.auto_gain]` is present, else full well → full scale.
-    pub fn from_config(sensor: &SensorConfig) -> Result<Self> {
-        sensor.validate()?;
-        let d = &sensor.detector;
+    /// `inputs.base_dir`) and fixes the conversion gain: `gain_dn_per_e` if given, else the
+    /// `[detector.auto_gain]` reference ([`reference_electrons`]) if present, else full
+    /// well → full scale. With `reference = "scene_mean"` the gain is pending
+    /// ([`DetectorModel::scene_mean_gain_fraction`]) and K stands at the full-well value
+    /// until [`DetectorModel::set_gain_from_scene_mean`] fixes it.
+    ///
+    /// Only [`crate::sensor::Sensor::build`] calls this: it is the one place that reads
+    /// the files a sensor refers to.
+    pub fn build(d: &DetectorConfig, inputs: &DetectorInputs) -> Result<Self> {
         let dark_e = gain::dark_e_per_frame(d);
-        let background_e = background_electrons(sensor)?;
+        let background_e = background_electrons(d, inputs.filter_qe, inputs.camera)?;
         let dims = (d.rows, d.cols);
-        let base = &sensor.base_dir;
+        let base = inputs.base_dir;
         let mut gain_file = None;
         let mut offset_file = None;
         if let Some(f) = &d.fpn {
@@ -165,6 +187,7 @@ impl DetectorModel {
             max_dn: d.max_dn().min(u16::MAX as f64),
             offset_dn: d.offset_dn,
             gain_dn_per_e: d.manual_gain(),
+            integration_time_s: d.integration_time_s,
             dark_e,
             background_e,
             shot_noise: d.shot_noise.unwrap_or(true),
@@ -176,19 +199,26 @@ impl DetectorModel {
             defects: d.defects.clone(),
             defect_file,
             auto_gain_reference: None,
+            scene_gain_pending: None,
             warnings: Vec::new(),
         };
         if let Some(a) = &d.auto_gain {
-            let (kind, e_ref) = reference_electrons(sensor, a)?;
+            let (k, kind, e_ref) = model.auto_gain_for(d, inputs.response, inputs.camera, a)?;
             let e_total = e_ref + dark_e + background_e;
-            if e_total >= d.full_well_e {
+            // With `scene_mean` the full well only stands in until the scene is imaged
+            // ([`DetectorModel::set_gain_from_scene_mean`] checks the real mean).
+            if e_total >= d.full_well_e && kind != AutoGainReference::SceneMean {
                 model.warnings.push(format!(
                     "detector.auto_gain: the reference scene gives {e_total:.4e} e-, beyond the full well ({:.4e} e-); K is set for the full well",
                     d.full_well_e
                 ));
             }
-            model.gain_dn_per_e = gain::gain_for(&model, a.fraction, e_total)?;
-            model.auto_gain_reference = Some((kind, e_ref));
+            model.gain_dn_per_e = k;
+            if kind == AutoGainReference::SceneMean {
+                model.scene_gain_pending = Some(a.fraction);
+            } else {
+                model.auto_gain_reference = Some((kind, e_ref));
+            }
         }
         if model.gain_dn_per_e * model.full_well_e + model.offset_dn < 0.5 * model.max_dn
             && model.gain_dn_per_e > 0.0
@@ -201,6 +231,25 @@ impl DetectorModel {
             ));
         }
         Ok(model)
+    }
+
+    /// The conversion gain K that the auto-gain reference `a` gives this model (its dark,
+    /// background, full well, nonlinearity and ADC range): the reference's signal
+    /// electrons ([`reference_electrons`] through `response` and `camera`) plus dark and
+    /// background land at `a.fraction` of the range above the offset. Returns
+    /// `(K, reference used, reference signal electrons)`.
+    ///
+    /// Errors: a reference without signal in the band.
+    pub fn auto_gain_for(
+        &self,
+        d: &DetectorConfig,
+        response: &Spectrum,
+        camera: &CameraEquation,
+        a: &AutoGainConfig,
+    ) -> Result<(f64, AutoGainReference, f64)> {
+        let (kind, e_ref) = reference_electrons(d, response, camera, a)?;
+        let e_total = e_ref + self.dark_e + self.background_e;
+        Ok((gain::gain_for(self, a.fraction, e_total)?, kind, e_ref))
     }
 
     /// Number of pixel rows.
@@ -233,6 +282,18 @@ impl DetectorModel {
         self.full_well_e
     }
 
+    /// Integration (exposure) time, s.
+    pub fn integration_time_s(&self) -> f64 {
+        self.integration_time_s
+    }
+
+    /// The temporal-noise exposure key [`DetectorInstance::expose`] uses: the bit pattern
+    /// of the integration time, so runs at different exposure times draw independent
+    /// noise (see the `rng` submodule).
+    pub fn exposure_key(&self) -> u64 {
+        self.integration_time_s.to_bits()
+    }
+
     /// Mean dark electrons per pixel per frame (dark current × integration time).
     pub fn dark_e(&self) -> f64 {
         self.dark_e
@@ -253,13 +314,11 @@ impl DetectorModel {
         self.shot_noise
     }
 
-    /// Whether K is to be set from the imaged scene (`reference = "scene_mean"`), and the
-    /// fraction of the range the scene mean should reach.
-    pub fn scene_mean_gain_fraction(&self, sensor: &SensorConfig) -> Option<f64> {
-        match (&sensor.detector.auto_gain, self.auto_gain_reference) {
-            (Some(a), Some((AutoGainReference::SceneMean, _))) => Some(a.fraction),
-            _ => None,
-        }
+    /// While K is still to be set from the imaged scene (`reference = "scene_mean"`, before
+    /// [`DetectorModel::set_gain_from_scene_mean`]): the fraction of the range the scene
+    /// mean should reach. `None` once K is fixed.
+    pub fn scene_mean_gain_fraction(&self) -> Option<f64> {
+        self.scene_gain_pending
     }
 
     /// Sets K so that a pixel receiving `mean_signal_e` signal electrons (plus dark and
@@ -267,8 +326,15 @@ impl DetectorModel {
     /// other auto-gain references).
     pub fn set_gain_from_scene_mean(&mut self, mean_signal_e: f64, fraction: f64) -> Result<()> {
         let e_total = mean_signal_e + self.dark_e + self.background_e;
+        if e_total >= self.full_well_e {
+            self.warnings.push(format!(
+                "detector.auto_gain: the scene mean gives {e_total:.4e} e-, beyond the full well ({:.4e} e-); K is set for the full well",
+                self.full_well_e
+            ));
+        }
         self.gain_dn_per_e = gain::gain_for(self, fraction, e_total)?;
         self.auto_gain_reference = Some((AutoGainReference::SceneMean, mean_signal_e));
+        self.scene_gain_pending = None;
         Ok(())
     }
 
@@ -415,11 +481,30 @@ impl DetectorInstance {
 
     /// Simulates frame `frame_index` for the mean signal electrons `mean_e` (rows × cols,
     /// from the imaging engine; negative values, e.g. resampling ringing, count as 0) and
-    /// returns its DN. Deterministic in (seed, frame_index) and independent of the number
-    /// of threads; rows are processed in parallel.
+    /// returns its DN. The temporal noise is keyed by the exposure
+    /// ([`DetectorModel::exposure_key`], from the integration time) and the frame, so a
+    /// run at another exposure time draws independent noise. Deterministic in (seed,
+    /// integration time, frame_index) and independent of the number of threads; rows are
+    /// processed in parallel.
     ///
     /// Errors: wrong shape, or a non-finite value in `mean_e`.
     pub fn expose(&self, mean_e: &Array2<f64>, frame_index: u64) -> Result<Array2<u16>> {
+        self.expose_exposure(mean_e, self.model.exposure_key(), frame_index)
+    }
+
+    /// As [`expose`](Self::expose) with an explicit exposure key: each distinct
+    /// `exposure` gets its own temporal-noise streams (for series that vary the
+    /// illumination at a fixed integration time, e.g. a photon-transfer measurement),
+    /// while the fixed pattern stays that of this instance. Deterministic in
+    /// (seed, exposure, frame_index).
+    ///
+    /// Errors: wrong shape, or a non-finite value in `mean_e`.
+    pub fn expose_exposure(
+        &self,
+        mean_e: &Array2<f64>,
+        exposure: u64,
+        frame_index: u64,
+    ) -> Result<Array2<u16>> {
         let m = &self.model;
         if mean_e.dim() != (m.rows, m.cols) {
             return Err(Error::param(
@@ -438,7 +523,7 @@ impl DetectorInstance {
         let cols = m.cols;
         let rows_out: Vec<Vec<u16>> = (0..m.rows)
             .into_par_iter()
-            .map(|i| self.expose_row(mean_e.row(i), i, frame_index))
+            .map(|i| self.expose_row(mean_e.row(i), i, exposure, frame_index))
             .collect();
         let data: Vec<u16> = rows_out.into_iter().flatten().collect();
         Array2::from_shape_vec((m.rows, cols), data)
@@ -446,10 +531,10 @@ impl DetectorInstance {
     }
 
     /// One row of [`DetectorInstance::expose`].
-    fn expose_row(&self, signal: ArrayView1<f64>, i: usize, frame: u64) -> Vec<u16> {
+    fn expose_row(&self, signal: ArrayView1<f64>, i: usize, exposure: u64, frame: u64) -> Vec<u16> {
         let m = &self.model;
-        let mut shot_rng = stream(self.seed, Effect::Shot, frame, i as u64);
-        let mut read_rng = stream(self.seed, Effect::Read, frame, i as u64);
+        let mut shot_rng = temporal_stream(self.seed, Effect::Shot, exposure, frame, i as u64);
+        let mut read_rng = temporal_stream(self.seed, Effect::Read, exposure, frame, i as u64);
         let gain = self.gain.as_ref().map(|g| g.row(i));
         let offset = self.offset_e.as_ref().map(|o| o.row(i));
         let quad = self.quadratic.as_ref().map(|q| q.row(i));
@@ -487,7 +572,7 @@ impl DetectorInstance {
     }
 }
 
-/// Step 1: mean total electrons `max(signal, 0) + dark + background` (DESIGN.md §1).
+/// Step 1: mean total electrons `max(signal, 0) + dark + background` (docs/design.md §1).
 pub fn mean_total_e(signal_e: f64, dark_e: f64, background_e: f64) -> f64 {
     signal_e.max(0.0) + dark_e + background_e
 }

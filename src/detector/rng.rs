@@ -1,4 +1,4 @@
-//! Independent random streams (DESIGN.md §3).
+//! Independent random streams (docs/design.md §3).
 //!
 //! Every random effect draws from its own stream, keyed by `(seed, effect, frame, row)`:
 //! the key is hashed with the SplitMix64 finaliser (Steele, Lea & Flood, "Fast splittable
@@ -7,7 +7,18 @@
 //!
 //! - switching one effect on or off never changes the numbers another effect sees,
 //! - fixed-pattern maps (frame 0 of their effect) are the same in every frame,
-//! - temporal noise of frame f uses `(seed, effect, f, row)`, independent between frames,
+//! - temporal noise has its own key per *exposure* and frame: the stream of frame f of
+//!   exposure x is `(seed, effect, f, row)` keyed further by x ([`temporal_stream`]), so
+//!   frame 0 of a run at one exposure setting and frame 0 at another are independent
+//!   draws, not the same noise rescaled. [`DetectorInstance::expose`] takes x from the
+//!   integration time (its IEEE-754 bit pattern, so any change of the exposure time gives
+//!   a fresh stream); [`DetectorInstance::expose_exposure`] lets a caller that varies the
+//!   illumination at a fixed integration time (photon-transfer series, calibration
+//!   levels) number its exposures itself. The same seed, exposure and frame always give
+//!   the same draw,
+//!
+//! [`DetectorInstance::expose`]: super::DetectorInstance::expose
+//! [`DetectorInstance::expose_exposure`]: super::DetectorInstance::expose_exposure
 //! - each row has its own stream, so rows can be processed in parallel in any order and
 //!   the result does not depend on the number of threads.
 
@@ -50,12 +61,31 @@ fn mix(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// The generator for `(seed, effect, frame, row)`.
+/// The generator for `(seed, effect, frame, row)` (fixed-pattern maps use frame 0).
 pub(crate) fn stream(seed: u64, effect: Effect, frame: u64, row: u64) -> Xoshiro256PlusPlus {
+    Xoshiro256PlusPlus::seed_from_u64(key(seed, effect, frame, row))
+}
+
+/// The hashed key of `(seed, effect, frame, row)`.
+fn key(seed: u64, effect: Effect, frame: u64, row: u64) -> u64 {
     let mut h = mix(seed);
     h = mix(h ^ effect as u64);
     h = mix(h ^ frame);
-    h = mix(h ^ row);
+    mix(h ^ row)
+}
+
+/// The temporal-noise generator for `(seed, effect, exposure, frame, row)`: the key of
+/// [`stream`] mixed once more with the exposure key, so different exposures never share
+/// a draw (the mix is a bijection, so distinct exposure keys give distinct seeds for the
+/// same remaining components).
+pub(crate) fn temporal_stream(
+    seed: u64,
+    effect: Effect,
+    exposure: u64,
+    frame: u64,
+    row: u64,
+) -> Xoshiro256PlusPlus {
+    let h = mix(key(seed, effect, frame, row) ^ mix(exposure ^ 0x4558_504f_5355_5245));
     Xoshiro256PlusPlus::seed_from_u64(h)
 }
 
@@ -72,5 +102,15 @@ mod tests {
         assert_ne!(a, stream(1, Effect::Offset, 0, 0).random::<u64>());
         assert_ne!(a, stream(1, Effect::Gain, 1, 0).random::<u64>());
         assert_ne!(a, stream(1, Effect::Gain, 0, 1).random::<u64>());
+    }
+
+    #[test]
+    fn temporal_streams_differ_by_exposure_and_repeat() {
+        let a: u64 = temporal_stream(1, Effect::Shot, 7, 0, 0).random();
+        assert_eq!(a, temporal_stream(1, Effect::Shot, 7, 0, 0).random::<u64>());
+        assert_ne!(a, temporal_stream(1, Effect::Shot, 8, 0, 0).random::<u64>());
+        assert_ne!(a, temporal_stream(1, Effect::Shot, 7, 1, 0).random::<u64>());
+        assert_ne!(a, temporal_stream(1, Effect::Read, 7, 0, 0).random::<u64>());
+        assert_ne!(a, stream(1, Effect::Shot, 0, 0).random::<u64>());
     }
 }

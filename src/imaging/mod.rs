@@ -1,6 +1,6 @@
 //! The imaging engine: spectral radiance cube → mean photo-electrons on the detector grid.
 //!
-//! Exactly the flow of DESIGN.md §1:
+//! Exactly the flow of docs/design.md §1:
 //!
 //! 1. **Spectral weights** ([`SpectralWeights`]): electrons per unit radiance for every
 //!    input band, `w_b = t_int · A_det · π/(4N²)(1−R²) / (hc) · ∫ S(λ) λ φ_b(λ) dλ` with
@@ -22,6 +22,7 @@
 //! view is centred in the scene's and must lie inside it.
 
 pub mod fft;
+pub mod otf_table;
 
 use std::time::Instant;
 
@@ -34,10 +35,11 @@ use crate::error::{Error, Result};
 use crate::io::CubeReader;
 use crate::radiometry;
 use crate::scene::{CubeMeta, Geometry, RadianceUnits};
-use crate::sensor::{Component, FrequencyGrid, SensorConfig, SystemOtf};
+use crate::sensor::{Component, FrequencyGrid, Sensor, SystemOtf};
 use crate::spectrum::Spectrum;
 
 use fft::RealFft2;
+use otf_table::{BandProfile, RadialTables};
 
 /// Fraction of the sensor's spectral response weight that may fall outside the input
 /// wavelength grid (issue requirement: the grid must cover all but 0.1 %).
@@ -60,10 +62,10 @@ pub struct SpectralWeights {
 impl SpectralWeights {
     /// Computes the weights of `sensor` for the bands of `meta` and checks that the
     /// wavelength grid covers the sensor's response (all but [`MAX_UNCOVERED_RESPONSE`]).
-    pub fn new(sensor: &SensorConfig, meta: &CubeMeta) -> Result<Self> {
-        let response = sensor.spectral_response()?;
-        check_coverage(&response, &meta.wavelength_um)?;
-        let etendue_time = sensor.camera_equation()?.etendue_time();
+    pub fn new(sensor: &Sensor, meta: &CubeMeta) -> Result<Self> {
+        let response = sensor.response();
+        check_coverage(response, &meta.wavelength_um)?;
+        let etendue_time = sensor.camera().etendue_time();
         let per_joule = 1e-6 / (PLANCK_H * SPEED_OF_LIGHT_C); // λ/(hc) with λ in µm
         let wl = &meta.wavelength_um;
         let electrons_per_unit = match meta.units {
@@ -75,7 +77,7 @@ impl SpectralWeights {
                         "at least 2 wavelengths for spectral radiance (W m-2 sr-1 µm-1); a single band must be band-integrated (W m-2 sr-1)",
                     ));
                 }
-                hat_weights(&response, wl)
+                hat_weights(response, wl)
                     .into_iter()
                     .map(|w| etendue_time * per_joule * w)
                     .collect()
@@ -280,20 +282,25 @@ pub struct Sampling {
     pub warnings: Vec<String>,
 }
 
+/// Relative shortfall below one scene sample per detector pixel that counts as a coarser
+/// scene: 0.1 %. A scene sampled within this of the detector (e.g. 0.99997, a field of view
+/// rounded to 3 decimals) carries all the detail the detector resolves to within the
+/// rounding, so it is not worth a warning.
+pub const COARSER_TOLERANCE: f64 = 1e-3;
+
 impl Sampling {
     /// Relates a scene of `meta`'s size and `geometry` to the detector of `sensor`.
-    pub fn new(sensor: &SensorConfig, meta: &CubeMeta, geometry: &Geometry) -> Result<Self> {
+    pub fn new(sensor: &Sensor, meta: &CubeMeta, geometry: &Geometry) -> Result<Self> {
         let dy = geometry.ifov_y_rad(meta.rows);
         let dx = geometry.ifov_x_rad(meta.cols);
         let d = sensor.ifov_rad();
         let y = AxisSampling::new(meta.rows, dy, sensor.detector.rows, d, "vertical")?;
         let x = AxisSampling::new(meta.cols, dx, sensor.detector.cols, d, "horizontal")?;
         let mut warnings = Vec::new();
-        if x.ratio < 1.0 - 1e-9 || y.ratio < 1.0 - 1e-9 {
+        if x.ratio < 1.0 - COARSER_TOLERANCE || y.ratio < 1.0 - COARSER_TOLERANCE {
             warnings.push(format!(
-                "the scene is coarser than the detector (scene/detector sampling {:.3} x {:.3}): it lacks the detail the sensor could resolve",
-                1.0 / x.ratio,
-                1.0 / y.ratio
+                "the scene is coarser than the detector: {:.5} x {:.5} scene samples per detector pixel (x, y), fewer than 1: it lacks the detail the sensor could resolve",
+                x.ratio, y.ratio
             ));
         }
         let integer = x.integer_ratio().is_some() && y.integer_ratio().is_some();
@@ -397,7 +404,7 @@ pub fn next_fast_len(n: usize) -> usize {
 /// converges slowly; that light is physically spread by the optics, and mirror padding
 /// supplies it from the nearest scene content rather than from the opposite edge.
 /// Components that are flat in frequency at high frequency (aerosol) are excluded: their
-/// scattered fraction spreads evenly over the padded frame by design (DESIGN.md §5).
+/// scattered fraction spreads evenly over the padded frame by design (docs/design.md §5).
 pub fn pad_width(
     otf: &SystemOtf,
     spacing_rad: f64,
@@ -462,7 +469,7 @@ pub struct ImagingStats {
 /// frames of a sequence.
 #[derive(Debug)]
 pub struct Imager {
-    sensor: SensorConfig,
+    sensor: Sensor,
     otf: SystemOtf,
     weights: SpectralWeights,
     sampling: Sampling,
@@ -470,18 +477,25 @@ pub struct Imager {
     grid: FrequencyGrid,
     pad_y: PadMap,
     pad_x: PadMap,
+    /// Chromatic components as 1-D tables, built once per run.
+    tables: RadialTables,
+    /// Per half-plane frequency sample `[ρ (cycles/rad), achromatic product]`, row-major
+    /// `[fy, fx]`: computed once per frame size.
+    radial: Vec<[f64; 2]>,
+    /// Largest ρ on the grid, cycles/rad.
+    rho_max: f64,
 }
 
 impl Imager {
     /// Prepares the chain. `geometry` is the scene's field of view (from the file or the
     /// command line). `wrap_tolerance` sets the padding (see [`pad_width`]).
     pub fn new(
-        sensor: &SensorConfig,
+        sensor: &Sensor,
         meta: &CubeMeta,
         geometry: &Geometry,
         wrap_tolerance: f64,
     ) -> Result<Self> {
-        let otf = SystemOtf::new(sensor)?;
+        let otf = sensor.otf().clone();
         let weights = SpectralWeights::new(sensor, meta)?;
         let mut sampling = Sampling::new(sensor, meta, geometry)?;
         let active: Vec<f64> = weights
@@ -527,6 +541,22 @@ impl Imager {
         let grid = FrequencyGrid::real_fft(sampling.y.padded_len, sampling.x.padded_len, dy, dx);
         let pad_y = PadMap::new(meta.rows, sampling.y.pad_before, sampling.y.padded_len);
         let pad_x = PadMap::new(meta.cols, sampling.x.pad_before, sampling.x.padded_len);
+        let achromatic = otf.on_grid(&grid).achromatic().clone();
+        let radial: Vec<[f64; 2]> = grid
+            .fy
+            .iter()
+            .flat_map(|fy| grid.fx.iter().map(move |fx| fx.hypot(*fy)))
+            .zip(achromatic.iter())
+            .map(|(rho, a)| [rho, *a])
+            .collect();
+        let rho_max = radial.iter().map(|p| p[0]).fold(0.0, f64::max);
+        let (lo, hi) = active
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), l| {
+                (lo.min(*l), hi.max(*l))
+            });
+        let (lo, hi) = if lo <= hi { (lo, hi) } else { (1.0, 1.0) };
+        let tables = RadialTables::new(&otf, lo, hi);
         Ok(Imager {
             sensor: sensor.clone(),
             otf,
@@ -536,6 +566,9 @@ impl Imager {
             grid,
             pad_y,
             pad_x,
+            tables,
+            radial,
+            rho_max,
         })
     }
 
@@ -563,11 +596,9 @@ impl Imager {
         mut progress: impl FnMut(usize, usize),
     ) -> Result<(Array2<f64>, ImagingStats)> {
         let (ny, nx) = (self.sampling.y.padded_len, self.sampling.x.padded_len);
-        let grid_otf = self.otf.on_grid(&self.grid);
+        let hc = nx / 2 + 1;
         let mut acc = Array2::<Complex64>::zeros(self.fft.spectrum_shape());
         let mut spec = Array2::<Complex64>::zeros(self.fft.spectrum_shape());
-        let mut padded = Array2::<f64>::zeros((ny, nx));
-        let mut otf_buf = Array2::<f64>::zeros(self.fft.spectrum_shape());
         let mut scratch = Vec::new();
         let mut stats = ImagingStats {
             padded_shape: (ny, nx),
@@ -578,17 +609,16 @@ impl Imager {
             let t0 = Instant::now();
             let plane = reader.read_band(frame, b)?;
             let t1 = Instant::now();
-            self.pad_into(plane.view(), &mut padded);
-            self.fft.forward(&mut padded, &mut spec, &mut scratch);
+            let view = plane.view();
+            self.fft.forward_rows(
+                |r, row| self.pad_row(&view, r, row),
+                &mut spec,
+                &mut scratch,
+            );
             let t2 = Instant::now();
             let w = self.weights.electrons_per_unit[b];
-            grid_otf.at_wavelength_into(self.weights.wavelength_um[b], &mut otf_buf);
-            ndarray::Zip::from(&mut acc)
-                .and(&spec)
-                .and(&otf_buf)
-                .par_for_each(|a, s, o| {
-                    *a += s * (w * o);
-                });
+            let profile = self.band_profile(self.weights.wavelength_um[b]);
+            accumulate(&mut acc, &spec, &self.radial, &profile, w, hc);
             let t3 = Instant::now();
             stats.read_s += (t1 - t0).as_secs_f64();
             stats.fft_s += (t2 - t1).as_secs_f64();
@@ -617,20 +647,52 @@ impl Imager {
         out
     }
 
+    /// The system transfer function at one band as a table in radial frequency ρ
+    /// (chromatic components from the run's 1-D tables; see [`otf_table`]). Multiplied by
+    /// the achromatic product it gives the OTF used in the accumulation, within
+    /// [`otf_table::TABLE_TOLERANCE`] of direct evaluation.
+    pub fn band_profile(&self, wavelength_um: f64) -> BandProfile {
+        self.tables
+            .band_profile(&self.otf, wavelength_um, self.rho_max)
+    }
+
+    /// The OTF the accumulation applies at `wavelength_um` on the half-plane frequency grid
+    /// `[fy, fx]` (achromatic product × tabulated chromatic profile).
+    pub fn tabulated_otf(&self, wavelength_um: f64) -> Array2<f64> {
+        let profile = self.band_profile(wavelength_um);
+        let (ny, hc) = self.fft.spectrum_shape();
+        Array2::from_shape_fn((ny, hc), |(j, k)| {
+            let p = self.radial[j * hc + k];
+            p[1] * profile.eval(p[0])
+        })
+    }
+
+    /// The half-plane frequency grid of the padded frame (cycles/rad).
+    pub fn frequency_grid(&self) -> &FrequencyGrid {
+        &self.grid
+    }
+
     /// Pads a band plane into the FFT buffer (see `PadMap`).
     fn pad_into(&self, plane: ArrayView2<f32>, out: &mut Array2<f64>) {
-        let xm = &self.pad_x;
         out.axis_iter_mut(Axis(0))
             .into_par_iter()
-            .zip(&self.pad_y.taps)
-            .for_each(|(mut row, ty)| {
-                let (ra, rb) = (plane.row(ty.a), plane.row(ty.b));
-                // Blend of the two source rows (equal rows inside the image).
-                let v = |c: usize| ty.w * ra[c] as f64 + (1.0 - ty.w) * rb[c] as f64;
-                for (o, tx) in row.iter_mut().zip(&xm.taps) {
-                    *o = tx.w * v(tx.a) + (1.0 - tx.w) * v(tx.b);
+            .enumerate()
+            .for_each(|(r, mut row)| {
+                if let Some(row) = row.as_slice_mut() {
+                    self.pad_row(&plane, r, row);
                 }
             });
+    }
+
+    /// Row `r` of the padded frame of a band plane (see `PadMap`), converted to f64.
+    fn pad_row(&self, plane: &ArrayView2<f32>, r: usize, out: &mut [f64]) {
+        let ty = self.pad_y.taps[r];
+        let (ra, rb) = (plane.row(ty.a), plane.row(ty.b));
+        // Blend of the two source rows (equal rows inside the image).
+        let v = |c: usize| ty.w * ra[c] as f64 + (1.0 - ty.w) * rb[c] as f64;
+        for (o, tx) in out.iter_mut().zip(&self.pad_x.taps) {
+            *o = tx.w * v(tx.a) + (1.0 - tx.w) * v(tx.b);
+        }
     }
 
     /// Integer ratio: shift by the fractional part of the first pixel position with a
@@ -756,4 +818,31 @@ impl Imager {
             *v *= cos2 * cos2;
         }
     }
+}
+
+/// The fused accumulation pass of one band: `acc += spec · w · A(f) · P_λ(ρ(f))` over the
+/// half plane, with A the achromatic product and P_λ the band's tabulated chromatic
+/// profile (no per-band OTF array). Rows are processed in parallel; every sample is
+/// computed by one worker in the same way whatever the thread count, so the result does
+/// not depend on it.
+fn accumulate(
+    acc: &mut Array2<Complex64>,
+    spec: &Array2<Complex64>,
+    radial: &[[f64; 2]],
+    profile: &BandProfile,
+    w: f64,
+    hc: usize,
+) {
+    let a = acc.as_slice_mut().expect("standard layout");
+    let s = spec.as_slice().expect("standard layout");
+    a.par_chunks_mut(hc)
+        .zip(s.par_chunks(hc))
+        .zip(radial.par_chunks(hc))
+        .for_each(|((a, s), r)| {
+            for ((a, s), p) in a.iter_mut().zip(s).zip(r) {
+                if p[1] != 0.0 {
+                    *a += s * (w * p[1] * profile.eval(p[0]));
+                }
+            }
+        });
 }

@@ -21,18 +21,20 @@
 //! | `wavelength units` | `Micrometers` (`micron`, `um`, `µm`), `Nanometers` (`nm`), `Millimeters`, `Meters`, `Wavenumber` (`cm-1`) |
 //! | `fwhm` | band widths, same units as `wavelength` |
 //! | `data gain values`, `data offset values` | per band: value = gain · stored + offset |
-//! | `eoir radiance units` | `W m-2 sr-1 um-1` (spectral radiance) or `W m-2 sr-1` (band-integrated) |
+//! | `eoir radiance units`, `radiance units`, `data units`, `units` | radiance unit, first present wins: `W m-2 sr-1 um-1`, `W/(m2 sr nm)`, `uW cm-2 sr-1 nm-1`… ([`crate::scene::units`]); values are converted to W m-2 sr-1 µm-1 |
 //! | `eoir fov deg` | `{horizontal, vertical}` full field of view, degrees |
 //! | `eoir ifov rad` | `{x, y}` angular pixel spacing, rad (instead of `eoir fov deg`) |
+//! | `fov`, `field of view` | `{horizontal, vertical}` (or horizontal only) full field of view, degrees, as SPy writes it; used when eoir's keys are absent |
 //! | `eoir range m` | range to the scene, m |
+//! | `data ignore value` | stored value marking pixels without data: they are read as 0 radiance and counted in the warnings |
 //!
 //! Without `wavelength units` (or with `wavelength units = Unknown`) eoir assumes µm when
 //! every wavelength is below 30 and nm when every wavelength is above 200 (and says so in
 //! the reader's warnings); anything else is an error. Wavenumbers ν (cm⁻¹) become λ = 10⁴/ν µm and their widths
 //! Δλ = 10⁴ Δν / ν² µm. Bands stored in strictly decreasing wavelength order (usual for
 //! wavenumber grids) are handed out in increasing order; any other order is an error.
-//! Without `eoir radiance units` the values are taken to be spectral radiance per µm
-//! (with a warning). Without a field of view the cube has no geometry and the caller
+//! Without any unit key the values are taken to be spectral radiance per µm (with a
+//! warning); `--radiance-units` ([`ReadOptions`]) overrides every key. Without a field of view the cube has no geometry and the caller
 //! (the CLI) has to supply one.
 //!
 //! The minimal header a user writes by hand for a float32 cube of 2 bands, 480 rows and
@@ -65,288 +67,31 @@
 
 use std::collections::HashMap;
 use std::fs::File;
-use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
 use ndarray::Array2;
 
 use crate::error::{Error, Result};
-use crate::scene::{check_radiance_plane, Cube, CubeMeta, Geometry, RadianceUnits};
+use crate::scene::{check_radiance_plane, Cube, CubeMeta};
 
+use super::binary::{check_size, decode_into, read_at, SampleType};
+use super::metadata::{
+    default_units, order_bands, resolve_geometry, resolve_units, BandOrder, ReadOptions,
+};
 use super::{atomic_write, write_all, CubeReader};
+
+/// Header keys stating the radiance units, in precedence order.
+const UNIT_KEYS: [&str; 4] = [
+    "eoir radiance units",
+    "radiance units",
+    "data units",
+    "units",
+];
+/// Common header keys holding the full field of view in degrees, in precedence order.
+const FOV_KEYS: [&str; 2] = ["fov", "field of view"];
 
 /// Data file extensions looked for next to a header, in order of preference.
 const DATA_EXTENSIONS: [&str; 6] = ["img", "dat", "raw", "bsq", "bil", "bip"];
-
-/// How the samples of one pixel value are stored.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum SampleType {
-    /// Signed 16-bit integer.
-    I16,
-    /// Unsigned 16-bit integer.
-    U16,
-    /// Signed 32-bit integer.
-    I32,
-    /// IEEE single precision.
-    F32,
-    /// IEEE double precision.
-    F64,
-}
-
-impl SampleType {
-    /// Bytes per sample.
-    pub(crate) fn size(self) -> usize {
-        match self {
-            SampleType::I16 | SampleType::U16 => 2,
-            SampleType::I32 | SampleType::F32 => 4,
-            SampleType::F64 => 8,
-        }
-    }
-
-    /// Decodes one sample from the first `size()` bytes of `b`.
-    #[inline]
-    fn decode(self, b: &[u8], big_endian: bool) -> f64 {
-        macro_rules! get {
-            ($t:ty, $n:expr) => {{
-                let mut a = [0u8; $n];
-                a.copy_from_slice(&b[..$n]);
-                if big_endian {
-                    <$t>::from_be_bytes(a)
-                } else {
-                    <$t>::from_le_bytes(a)
-                }
-            }};
-        }
-        match self {
-            SampleType::I16 => f64::from(get!(i16, 2)),
-            SampleType::U16 => f64::from(get!(u16, 2)),
-            SampleType::I32 => f64::from(get!(i32, 4)),
-            SampleType::F32 => f64::from(get!(f32, 4)),
-            SampleType::F64 => get!(f64, 8),
-        }
-    }
-}
-
-/// Converts packed samples to f32, applying `value = gain · stored + offset` when a
-/// scaling is given, and appends them to `out`.
-pub(crate) fn decode_into(
-    bytes: &[u8],
-    ty: SampleType,
-    big_endian: bool,
-    scale: Option<(f64, f64)>,
-    out: &mut Vec<f32>,
-) {
-    let n = ty.size();
-    match scale {
-        None => out.extend(
-            bytes
-                .chunks_exact(n)
-                .map(|c| ty.decode(c, big_endian) as f32),
-        ),
-        Some((gain, offset)) => out.extend(
-            bytes
-                .chunks_exact(n)
-                .map(|c| (gain * ty.decode(c, big_endian) + offset) as f32),
-        ),
-    }
-}
-
-/// A spectral grid in increasing order and how it maps onto the stored bands.
-pub(crate) struct BandOrder {
-    /// Band centres, µm, strictly increasing.
-    pub(crate) wavelength_um: Vec<f64>,
-    /// Band widths, µm, in the same order.
-    pub(crate) fwhm_um: Option<Vec<f64>>,
-    /// Output band index → stored band index.
-    pub(crate) band_map: Vec<usize>,
-    /// Whether the stored order was reversed.
-    pub(crate) reversed: bool,
-}
-
-/// Checks a wavelength list (µm) and brings it into strictly increasing order. A strictly
-/// decreasing list is reversed; any other order is an error naming the first pair out of
-/// order.
-pub(crate) fn order_bands(
-    source: &Path,
-    wavelength_um: Vec<f64>,
-    fwhm_um: Option<Vec<f64>>,
-) -> Result<BandOrder> {
-    if wavelength_um.is_empty() {
-        return Err(Error::format(source, "the wavelength list is empty"));
-    }
-    if let Some((i, w)) = wavelength_um
-        .iter()
-        .enumerate()
-        .find(|(_, w)| !(w.is_finite() && **w > 0.0))
-    {
-        return Err(Error::format(
-            source,
-            format!("wavelength[{i}] = {w} µm is not a positive number"),
-        ));
-    }
-    if let Some(f) = &fwhm_um {
-        if f.len() != wavelength_um.len() {
-            return Err(Error::format(
-                source,
-                format!(
-                    "{} fwhm values for {} wavelengths",
-                    f.len(),
-                    wavelength_um.len()
-                ),
-            ));
-        }
-    }
-    let n = wavelength_um.len();
-    let increasing = wavelength_um.windows(2).all(|w| w[1] > w[0]);
-    let decreasing = wavelength_um.windows(2).all(|w| w[1] < w[0]);
-    if increasing {
-        return Ok(BandOrder {
-            wavelength_um,
-            fwhm_um,
-            band_map: (0..n).collect(),
-            reversed: false,
-        });
-    }
-    if decreasing {
-        let mut wl = wavelength_um;
-        wl.reverse();
-        let fw = fwhm_um.map(|mut f| {
-            f.reverse();
-            f
-        });
-        return Ok(BandOrder {
-            wavelength_um: wl,
-            fwhm_um: fw,
-            band_map: (0..n).rev().collect(),
-            reversed: true,
-        });
-    }
-    // Name the first pair that breaks the direction the list starts in.
-    let up = wavelength_um[1] > wavelength_um[0];
-    let i = wavelength_um
-        .windows(2)
-        .position(|w| if up { w[1] <= w[0] } else { w[1] >= w[0] })
-        .unwrap_or(0);
-    Err(Error::format(
-        source,
-        format!(
-            "wavelengths must be strictly increasing or strictly decreasing, but wavelength[{i}] = {} µm and wavelength[{}] = {} µm break the order",
-            wavelength_um[i],
-            i + 1,
-            wavelength_um[i + 1]
-        ),
-    ))
-}
-
-/// Builds the cube geometry from either a full field of view (degrees) or an angular
-/// pixel spacing (rad), plus an optional range; `keys` names the fields for messages as
-/// `[fov, ifov, range]`.
-pub(crate) fn geometry_from(
-    source: &Path,
-    keys: [&str; 3],
-    fov_deg: Option<[f64; 2]>,
-    ifov_rad: Option<[f64; 2]>,
-    range_m: Option<f64>,
-    rows: usize,
-    cols: usize,
-) -> Result<Option<Geometry>> {
-    let [k_fov, k_ifov, k_range] = keys;
-    if let Some(r) = range_m {
-        if !(r.is_finite() && r > 0.0) {
-            return Err(Error::format(
-                source,
-                format!("{k_range} = {r}: expected a range > 0 m"),
-            ));
-        }
-    }
-    let mut g = match (fov_deg, ifov_rad) {
-        (Some(_), Some(_)) => {
-            return Err(Error::format(
-                source,
-                format!("both {k_fov} and {k_ifov} are given; give only one of them"),
-            ))
-        }
-        (None, None) => {
-            if range_m.is_some() {
-                return Err(Error::format(
-                    source,
-                    format!("{k_range} is given without a field of view; add {k_fov} = [h, v] (degrees) or {k_ifov} = [x, y] (rad)"),
-                ));
-            }
-            return Ok(None);
-        }
-        (Some([h, v]), None) => {
-            for (name, x) in [("horizontal", h), ("vertical", v)] {
-                if !(x.is_finite() && x > 0.0 && x < 180.0) {
-                    return Err(Error::format(
-                        source,
-                        format!("{k_fov}: {name} field of view {x} must be in (0, 180) degrees"),
-                    ));
-                }
-            }
-            Geometry {
-                fov_x_deg: h,
-                fov_y_deg: v,
-                range_m: None,
-            }
-        }
-        (None, Some([x, y])) => {
-            for (name, a) in [("x", x), ("y", y)] {
-                if !(a.is_finite() && a > 0.0) {
-                    return Err(Error::format(
-                        source,
-                        format!("{k_ifov}: {name} pixel spacing {a} must be > 0 rad"),
-                    ));
-                }
-            }
-            Geometry::from_ifov(x, y, rows, cols)
-        }
-    };
-    g.range_m = range_m;
-    Ok(Some(g))
-}
-
-/// Parses a radiance unit string, naming `key` and the valid spellings on failure.
-pub(crate) fn parse_units(source: &Path, key: &str, s: &str) -> Result<RadianceUnits> {
-    RadianceUnits::parse(s).ok_or_else(|| {
-        Error::format(
-            source,
-            format!(
-                "{key} = `{s}` is not understood; use `{}` (spectral radiance) or `{}` (band-integrated radiance)",
-                RadianceUnits::SpectralPerUm.as_str(),
-                RadianceUnits::BandIntegrated.as_str()
-            ),
-        )
-    })
-}
-
-/// Reads exactly `buf.len()` bytes at `offset`, naming `path` on failure.
-pub(crate) fn read_at(file: &mut File, path: &Path, offset: u64, buf: &mut [u8]) -> Result<()> {
-    file.seek(SeekFrom::Start(offset))
-        .map_err(|e| Error::io(path, e))?;
-    file.read_exact(buf).map_err(|e| Error::io(path, e))
-}
-
-/// Checks that a data file holds exactly `expected` bytes.
-pub(crate) fn check_size(path: &Path, actual: u64, expected: u64, layout: &str) -> Result<()> {
-    if actual < expected {
-        Err(Error::format(
-            path,
-            format!(
-                "data file is truncated: the header says {expected} bytes ({layout}) but the file has {actual} bytes"
-            ),
-        ))
-    } else if actual > expected {
-        Err(Error::format(
-            path,
-            format!(
-                "the header says {expected} bytes ({layout}) but the file has {actual} bytes; check samples, lines, bands, data type and header offset"
-            ),
-        ))
-    } else {
-        Ok(())
-    }
-}
 
 /// How bands are arranged in the data file.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -745,6 +490,10 @@ pub struct EnviReader {
     band_map: Vec<usize>,
     /// Per stored band `(gain, offset)`, if the header scales the data.
     scale: Option<Vec<(f64, f64)>>,
+    /// `data ignore value`, and per output band the samples found equal to it.
+    ignore: Option<f64>,
+    masked: Vec<Option<usize>>,
+    units_source: String,
     warnings: Vec<String>,
 }
 
@@ -752,6 +501,11 @@ impl EnviReader {
     /// Opens an ENVI cube from its header (`.hdr`) or its data file, parses the header and
     /// checks the data file has exactly the size the header implies.
     pub fn open(path: &Path) -> Result<Self> {
+        Self::open_with(path, &ReadOptions::default())
+    }
+
+    /// Like [`open`](Self::open), with reading options (a radiance-unit override).
+    pub fn open_with(path: &Path, options: &ReadOptions) -> Result<Self> {
         let (header_path, data_path) = find_pair(path)?;
         let bytes = crate::io::input::read_regular(&header_path, crate::io::input::MAX_TEXT_BYTES)?;
         let text = String::from_utf8_lossy(&bytes);
@@ -897,7 +651,7 @@ impl EnviReader {
         // Scaling.
         let gains = h.opt_list("data gain values", Some(bands))?;
         let offsets = h.opt_list("data offset values", Some(bands))?;
-        let scale = match (gains, offsets) {
+        let scale: Option<Vec<(f64, f64)>> = match (gains, offsets) {
             (None, None) => None,
             (g, o) => Some(
                 (0..bands)
@@ -911,27 +665,44 @@ impl EnviReader {
             ),
         };
 
-        // eoir's own keys.
-        let units_rad = match h.get("eoir radiance units") {
-            Some(e) => parse_units(&header_path, "eoir radiance units", &e.value)?,
-            None => {
-                warnings.push(format!(
-                    "{}: no `eoir radiance units`; the values are taken as spectral radiance, {}",
-                    header_path.display(),
-                    RadianceUnits::SpectralPerUm.as_str()
-                ));
-                RadianceUnits::SpectralPerUm
-            }
+        // Radiance units and geometry: eoir's keys, then the common ones.
+        let statements: Vec<(String, String)> = UNIT_KEYS
+            .iter()
+            .filter_map(|k| h.get(k).map(|e| (k.to_string(), e.value.clone())))
+            .collect();
+        let resolved = match resolve_units(&header_path, &statements, options, &mut warnings)? {
+            Some(r) => r,
+            None => default_units(
+                &header_path,
+                "`eoir radiance units`, `radiance units`, `data units` or `units`",
+                &mut warnings,
+            ),
         };
-        let geometry = geometry_from(
+        let units_rad = resolved.scale.units;
+        let k = resolved.scale.to_eoir;
+        let scale = match scale {
+            Some(v) if k != 1.0 => Some(v.into_iter().map(|(g, o)| (g * k, o * k)).collect()),
+            None if k != 1.0 => Some(vec![(k, 0.0); bands]),
+            other => other,
+        };
+        let mut common = Vec::new();
+        for key in FOV_KEYS {
+            if let Some(v) = h.opt_list(key, None)? {
+                common.push((key.to_string(), v));
+            }
+        }
+        let geometry = resolve_geometry(
             &header_path,
             ["`eoir fov deg`", "`eoir ifov rad`", "`eoir range m`"],
             h.opt_pair("eoir fov deg")?,
             h.opt_pair("eoir ifov rad")?,
+            &common,
             h.opt_f64("eoir range m")?,
             rows,
             cols,
+            &mut warnings,
         )?;
+        let ignore = h.opt_f64("data ignore value")?;
 
         let meta = CubeMeta {
             wavelength_um,
@@ -973,8 +744,11 @@ impl EnviReader {
             big_endian,
             interleave,
             file_bands: bands,
+            masked: vec![None; band_map.len()],
             band_map,
             scale,
+            ignore,
+            units_source: resolved.source,
             warnings,
         })
     }
@@ -1051,6 +825,21 @@ impl CubeReader for EnviReader {
                 }
             }
         }
+        if let Some(ignore) = self.ignore {
+            // The marker after the same scaling as the data, so the comparison is exact.
+            let (g, o) = scale.unwrap_or((1.0, 0.0));
+            let marker = if scale.is_some() {
+                (g * ignore + o) as f32
+            } else {
+                ignore as f32
+            };
+            let mut n = 0;
+            for v in values.iter_mut().filter(|v| **v == marker) {
+                *v = 0.0;
+                n += 1;
+            }
+            self.masked[band] = Some(n);
+        }
         let plane = Array2::from_shape_vec((rows, cols), values)
             .map_err(|e| Error::format(&self.data_path, e.to_string()))?;
         check_radiance_plane(
@@ -1063,7 +852,21 @@ impl CubeReader for EnviReader {
     }
 
     fn warnings(&self) -> Vec<String> {
-        self.warnings.clone()
+        let mut w = self.warnings.clone();
+        let read: Vec<usize> = self.masked.iter().flatten().copied().collect();
+        let n: usize = read.iter().sum();
+        if let (Some(ignore), true) = (self.ignore, n > 0) {
+            w.push(format!(
+                "{}: {n} samples (pixel × band, in the {} bands read) equal `data ignore value = {ignore}` and were read as 0 radiance",
+                self.header_path.display(),
+                read.len()
+            ));
+        }
+        w
+    }
+
+    fn units_source(&self) -> String {
+        self.units_source.clone()
     }
 }
 

@@ -38,11 +38,19 @@
 //! | `eoirFovDeg` | `v2d` | full field of view `[horizontal, vertical]`, degrees (if known) |
 //! | `eoirRangeM` | `double` | range to the scene, m (if known) |
 //!
-//! Reading a file without `eoirSpectralDensityUnit` (any other tool's file), eoir takes the
-//! density unit from `emissiveUnits` if that names one (e.g. `W.m^-2.sr^-1.nm^-1`), and
-//! otherwise **assumes the unit of the channel names** (nm channels ⇒ values per nm, which
-//! are multiplied by 1000 to give per µm), recording the assumption in
-//! [`CubeReader::warnings`](super::CubeReader::warnings). A density per frequency unit is converted with
+//! Reading a file, the units come from, in this order: `--radiance-units`
+//! ([`ReadOptions`]); eoir's attributes above; a `radianceUnits` or `units` string
+//! attribute in any spelling of [`crate::scene::units`] (e.g. `W m-2 sr-1 um-1` on a file
+//! whose channels are named in nm: the values are per µm whatever the channel names
+//! say); the density unit of `emissiveUnits` if it names one (e.g.
+//! `W.m^-2.sr^-1.nm^-1`). **Without any unit statement, eoir assumes the values are per
+//! the unit of the channel names** (nm channels ⇒ values per nm, multiplied by 1000 to
+//! give per µm), says so in [`CubeReader::warnings`](super::CubeReader::warnings) and
+//! records the rule in [`CubeReader::units_source`](super::CubeReader::units_source)
+//! (`report.json`: `input.units_source`).
+//!
+//! The field of view comes from `eoirFovDeg`, else from a `fov_deg` or `fov` attribute
+//! (`[horizontal, vertical]` degrees or the horizontal alone). A density per frequency unit is converted with
 //! `L_λ = L_ν · |dν/dλ| = L_ν · c / λ²`.
 //!
 //! The whole image is read at [`ExrReader::open`] (OpenEXR interleaves all channels of a
@@ -61,7 +69,16 @@ use ndarray::{Array2, Axis};
 
 use crate::constants::SPEED_OF_LIGHT_C;
 use crate::error::{Error, Result};
-use crate::scene::{check_radiance_plane, Cube, CubeMeta, Geometry, RadianceUnits};
+use crate::scene::{check_radiance_plane, Cube, CubeMeta, RadianceUnits};
+
+use super::metadata::{resolve_geometry, resolve_units, ReadOptions};
+
+/// Common attributes stating the radiance units (strings, any spelling of
+/// [`crate::scene::units`]), in precedence order.
+pub const UNIT_ATTRIBUTES: [&str; 2] = ["radianceUnits", "units"];
+/// Common attributes holding the full field of view in degrees (`v2f`, `v2d`, `float`,
+/// `double` or a string of numbers), in precedence order.
+pub const FOV_ATTRIBUTES: [&str; 2] = ["fov_deg", "fov"];
 
 /// Layout version eoir writes into `spectralLayoutVersion`.
 pub const LAYOUT_VERSION: &str = "1.0";
@@ -333,6 +350,7 @@ pub struct ExrReader {
     planes: Vec<Vec<f32>>,
     /// Per band: factor turning stored values into the cube's units.
     scale: Vec<f64>,
+    units_source: String,
     warnings: Vec<String>,
 }
 
@@ -379,6 +397,11 @@ impl ExrReader {
     /// Opens and reads a spectral OpenEXR file, parsing the band order from the channel
     /// names and the units and geometry from the attributes.
     pub fn open(path: &Path) -> Result<Self> {
+        Self::open_with(path, &ReadOptions::default())
+    }
+
+    /// Like [`open`](Self::open), with reading options (a radiance-unit override).
+    pub fn open_with(path: &Path, options: &ReadOptions) -> Result<Self> {
         let file = crate::io::input::open_regular(path)?;
         let mut file = std::io::BufReader::new(file);
         check_exr_size(path, &mut file)?;
@@ -535,7 +558,21 @@ impl ExrReader {
             })?),
             None => None,
         };
-        let (units, scale) = match (eoir_units, eoir_density) {
+        let mut statements = Vec::new();
+        for name in UNIT_ATTRIBUTES {
+            if let Some(u) = text_attr(path, &attrs, name)? {
+                statements.push((name.to_string(), u));
+            }
+        }
+        let eoir_stated = eoir_units.is_some() || eoir_density.is_some();
+        let common = if options.radiance_units.is_some() || !eoir_stated {
+            resolve_units(path, &statements, options, &mut warnings)?
+        } else {
+            None
+        };
+        let (units, scale, units_source) = match (common, eoir_units, eoir_density) {
+            (Some(r), _, _) => (r.scale.units, vec![r.scale.to_eoir; found.len()], r.source),
+            (None, eoir_units, eoir_density) => match (eoir_units, eoir_density) {
             (Some(RadianceUnits::BandIntegrated), Some(_)) => {
                 return Err(Error::format(
                     path,
@@ -544,19 +581,30 @@ impl ExrReader {
                     ),
                 ))
             }
-            (Some(RadianceUnits::BandIntegrated), None) => {
-                (RadianceUnits::BandIntegrated, vec![1.0; found.len()])
-            }
+            (Some(RadianceUnits::BandIntegrated), None) => (
+                RadianceUnits::BandIntegrated,
+                vec![1.0; found.len()],
+                format!("stated: `{ATTR_RADIANCE_UNITS}` (band-integrated)"),
+            ),
             (_, Some(d)) => {
                 let s = wavelength_um.iter().map(|&w| d.per_um_factor(w)).collect();
-                (RadianceUnits::SpectralPerUm, s)
+                (
+                    RadianceUnits::SpectralPerUm,
+                    s,
+                    format!("stated: `{ATTR_SPECTRAL_DENSITY_UNIT}` = {d:?}"),
+                )
             }
-            (Some(RadianceUnits::SpectralPerUm), None) => {
-                (RadianceUnits::SpectralPerUm, vec![1.0; found.len()])
-            }
+            (Some(RadianceUnits::SpectralPerUm), None) => (
+                RadianceUnits::SpectralPerUm,
+                vec![1.0; found.len()],
+                format!("stated: `{ATTR_RADIANCE_UNITS}` (per um)"),
+            ),
             (None, None) => {
-                let s = if let Some((d, _)) = emissive_density {
-                    wavelength_um.iter().map(|&w| d.per_um_factor(w)).collect()
+                let (s, source) = if let Some((d, text)) = &emissive_density {
+                    (
+                        wavelength_um.iter().map(|&w| d.per_um_factor(w)).collect(),
+                        format!("stated: `{ATTR_EMISSIVE_UNITS}` density per {text}"),
+                    )
                 } else {
                     let mut units: Vec<&str> = found.iter().map(|f| f.unit_text.as_str()).collect();
                     units.sort_unstable();
@@ -565,13 +613,20 @@ impl ExrReader {
                         "the file does not say per which spectral unit its radiance is given (no `{ATTR_SPECTRAL_DENSITY_UNIT}` attribute, `{ATTR_EMISSIVE_UNITS}` names none); assumed the unit of the channel names ({}) and converted to W m-2 sr-1 um-1",
                         units.join(", ")
                     ));
-                    found
-                        .iter()
-                        .map(|f| f.unit.per_um_factor(f.wavelength_um))
-                        .collect()
+                    (
+                        found
+                            .iter()
+                            .map(|f| f.unit.per_um_factor(f.wavelength_um))
+                            .collect(),
+                        format!(
+                            "assumed: no unit statement, values per the unit of the channel names ({}), converted to W m-2 sr-1 um-1",
+                            units.join(", ")
+                        ),
+                    )
                 };
-                (RadianceUnits::SpectralPerUm, s)
+                (RadianceUnits::SpectralPerUm, s, source)
             }
+        },
         };
 
         // Exact wavelengths written by eoir (names carry 1e-6 nm).
@@ -632,20 +687,31 @@ impl ExrReader {
                 ))
             }
         };
-        let geometry = match fov {
-            Some((fov_x_deg, fov_y_deg)) => Some(Geometry {
-                fov_x_deg,
-                fov_y_deg,
-                range_m,
-            }),
-            None => {
-                if range_m.is_some() {
-                    warnings.push(format!(
-                        "attribute `{ATTR_RANGE_M}` ignored: without `{ATTR_FOV_DEG}` the file has no geometry"
-                    ));
-                }
-                None
+        let mut common = Vec::new();
+        for name in FOV_ATTRIBUTES {
+            if let Some(v) = attrs.get(name.as_bytes()) {
+                common.push((name.to_string(), fov_values(path, name, v)?));
             }
+        }
+        let geometry = if fov.is_none() && common.is_empty() {
+            if range_m.is_some() {
+                warnings.push(format!(
+                    "attribute `{ATTR_RANGE_M}` ignored: without `{ATTR_FOV_DEG}` the file has no geometry"
+                ));
+            }
+            None
+        } else {
+            resolve_geometry(
+                path,
+                ["`eoirFovDeg`", "`eoirIfovRad`", "`eoirRangeM`"],
+                fov.map(|(h, v)| [h, v]),
+                None,
+                &common,
+                range_m,
+                rows,
+                cols,
+                &mut warnings,
+            )?
         };
 
         let meta = CubeMeta {
@@ -664,9 +730,48 @@ impl ExrReader {
             meta,
             planes,
             scale,
+            units_source,
             warnings,
         })
     }
+}
+
+/// Field-of-view values of a common attribute: a 2-vector, one number, or a string of
+/// numbers.
+fn fov_values(path: &Path, name: &str, v: &AttributeValue) -> Result<Vec<f64>> {
+    let bad = |what: String| {
+        Error::format(
+            path,
+            format!("attribute `{name}` {what}; expected the field of view in degrees as v2f/v2d [horizontal, vertical], a float/double, or a string of numbers"),
+        )
+    };
+    Ok(match v {
+        AttributeValue::FloatVec2(v) => vec![f64::from(v.x()), f64::from(v.y())],
+        AttributeValue::F32(x) => vec![f64::from(*x)],
+        AttributeValue::F64(x) => vec![*x],
+        AttributeValue::Custom { kind, bytes } if kind == V2D && bytes.len() == 16 => {
+            let mut x = [0u8; 8];
+            let mut y = [0u8; 8];
+            x.copy_from_slice(&bytes[..8]);
+            y.copy_from_slice(&bytes[8..]);
+            vec![f64::from_le_bytes(x), f64::from_le_bytes(y)]
+        }
+        AttributeValue::Text(t) => t
+            .to_string()
+            .split(|c: char| c == ',' || c.is_whitespace())
+            .filter(|t| !t.is_empty())
+            .map(|t| {
+                t.parse::<f64>()
+                    .map_err(|_| bad(format!("= `{t}` is not a number")))
+            })
+            .collect::<Result<_>>()?,
+        other => {
+            return Err(bad(format!(
+                "has type `{}`",
+                String::from_utf8_lossy(other.kind_name())
+            )))
+        }
+    })
 }
 
 /// Lists channel names for a message, at most [`MAX_LISTED`] of them.
@@ -757,6 +862,10 @@ impl super::CubeReader for ExrReader {
 
     fn warnings(&self) -> Vec<String> {
         self.warnings.clone()
+    }
+
+    fn units_source(&self) -> String {
+        self.units_source.clone()
     }
 }
 

@@ -24,14 +24,18 @@ use ndarray::{Array2, Array3};
 use crate::error::{Error, Result};
 use crate::scene::{Cube, CubeMeta};
 
+pub(crate) mod binary;
 pub mod envi;
 pub mod exr;
 #[cfg(feature = "hdf5")]
 pub mod hdf5;
 pub mod input;
+pub mod metadata;
 pub mod npy;
 pub mod output;
 pub mod raster;
+
+pub use metadata::ReadOptions;
 
 /// A source of radiance planes: one or more frames of a cube with shared metadata.
 pub trait CubeReader {
@@ -52,6 +56,11 @@ pub trait CubeReader {
     /// (e.g. a unit the file did not state). Empty when the file was unambiguous.
     fn warnings(&self) -> Vec<String> {
         Vec::new()
+    }
+    /// Where the radiance units came from: an override, a statement in the file (which
+    /// key), or the reader's default rule (see [`metadata`]). Recorded in the run report.
+    fn units_source(&self) -> String {
+        format!("eoir's units: {}", self.meta().units.as_str())
     }
 }
 
@@ -93,12 +102,26 @@ impl CubeFormat {
 
 /// Opens a cube file for band-by-band reading; the format comes from the extension.
 pub fn open(path: &Path) -> Result<Box<dyn CubeReader>> {
+    open_with(path, &ReadOptions::default())
+}
+
+/// Like [`open`], with options (e.g. a radiance-unit override) that change how the
+/// metadata is read.
+pub fn open_with(path: &Path, options: &ReadOptions) -> Result<Box<dyn CubeReader>> {
     match CubeFormat::from_path(path)? {
-        CubeFormat::Envi => Ok(Box::new(envi::EnviReader::open(path)?)),
-        CubeFormat::Exr => Ok(Box::new(exr::ExrReader::open(path)?)),
-        CubeFormat::Npy => Ok(Box::new(npy::NpyReader::open(path)?)),
+        CubeFormat::Envi => Ok(Box::new(envi::EnviReader::open_with(path, options)?)),
+        CubeFormat::Exr => Ok(Box::new(exr::ExrReader::open_with(path, options)?)),
+        CubeFormat::Npy => Ok(Box::new(npy::NpyReader::open_with(path, options)?)),
         #[cfg(feature = "hdf5")]
-        CubeFormat::Hdf5 => Ok(Box::new(hdf5::Hdf5Reader::open(path)?)),
+        CubeFormat::Hdf5 => {
+            if options.radiance_units.is_some() {
+                return Err(Error::format(
+                    path,
+                    "--radiance-units is not supported for HDF5 input; state the units in the file's `units` attribute",
+                ));
+            }
+            Ok(Box::new(hdf5::Hdf5Reader::open(path)?))
+        }
         #[cfg(not(feature = "hdf5"))]
         CubeFormat::Hdf5 => Err(hdf5_missing(path)),
     }

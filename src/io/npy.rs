@@ -7,7 +7,8 @@
 //! does not grow with the number of bands or frames.
 //!
 //! The sidecar is `<stem>.json` next to `<stem>.npy`. Only `wavelength_um` is required;
-//! unknown keys are errors:
+//! keys eoir does not know (`layout`, `scene`, … as other tools write them) are listed in
+//! the warnings and otherwise ignored:
 //!
 //! ```json
 //! {
@@ -20,16 +21,20 @@
 //! }
 //! ```
 //!
-//! `units` is `W m-2 sr-1 um-1` (spectral radiance, the default, with a warning when
-//! absent) or `W m-2 sr-1` (band-integrated). Instead of `fov_deg` (full field of view,
-//! degrees, horizontal then vertical) the sidecar may give `ifov_rad` (angular pixel
-//! spacing, rad, x then y). Wavelengths listed in strictly decreasing order are handed
+//! `units` (or `radiance_units`) is any radiance unit [`crate::scene::units`] parses —
+//! `W m-2 sr-1 um-1` (spectral radiance, the default, with a warning when absent),
+//! `W/(m2 sr nm)`, `uW cm-2 sr-1 nm-1`, `W m-2 sr-1` (band-integrated)… — and the values
+//! are converted to eoir's units. Instead of `fov_deg` (full field of view, degrees,
+//! horizontal then vertical) the sidecar may give `ifov_rad` (angular pixel spacing, rad,
+//! x then y); a foreign `fov` key (`[h, v]` or the horizontal alone, degrees) is used when
+//! neither is present (precedence in [`super::metadata`]). Wavelengths listed in strictly decreasing order are handed
 //! out in increasing order (the bands are reversed transparently).
 //!
 //! [`write()`] stores `<f4` `[band, row, col]` (version 1.0) plus the sidecar, each
 //! atomically, the array first; if the sidecar cannot be written the new array file is
 //! removed again.
 
+use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -38,11 +43,11 @@ use ndarray::Array2;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::scene::{check_radiance_plane, Cube, CubeMeta, RadianceUnits};
+use crate::scene::{check_radiance_plane, Cube, CubeMeta};
 
-use super::envi::{
-    check_size, decode_into, geometry_from, order_bands, parse_units, read_at, BandOrder,
-    SampleType,
+use super::binary::{check_size, decode_into, read_at, SampleType};
+use super::metadata::{
+    default_units, order_bands, resolve_geometry, resolve_units, BandOrder, ReadOptions,
 };
 use super::{atomic_write, write_all, CubeReader};
 
@@ -51,14 +56,13 @@ const MAGIC: &[u8; 6] = b"\x93NUMPY";
 
 /// The metadata sidecar of an `.npy` cube (`<stem>.json`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct Sidecar {
     /// Band centre wavelengths, µm, one per band.
     pub wavelength_um: Vec<f64>,
     /// Band full widths at half maximum, µm, one per band.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fwhm_um: Option<Vec<f64>>,
-    /// Radiance units: `W m-2 sr-1 um-1` or `W m-2 sr-1`.
+    /// Radiance units, any spelling of [`crate::scene::units`].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub units: Option<String>,
     /// Full field of view `[horizontal, vertical]`, degrees.
@@ -73,6 +77,10 @@ pub struct Sidecar {
     /// Time between frames of a `[frame, band, row, col]` array, s.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub frame_time_s: Option<f64>,
+    /// Every other key: `radiance_units` and `fov` are read (see the module
+    /// documentation), the rest are warnings.
+    #[serde(flatten)]
+    pub extra: BTreeMap<String, serde_json::Value>,
 }
 
 /// The sidecar path for an `.npy` file: same stem, `.json`.
@@ -427,6 +435,9 @@ pub struct NpyReader {
     frame_time_s: Option<f64>,
     /// Output band index → stored band index.
     band_map: Vec<usize>,
+    /// Factor from the stated units to eoir's.
+    to_eoir: f64,
+    units_source: String,
     warnings: Vec<String>,
 }
 
@@ -434,6 +445,11 @@ impl NpyReader {
     /// Opens an `.npy` cube and its `<stem>.json` sidecar, checking the header, the
     /// file's size and the metadata.
     pub fn open(path: &Path) -> Result<Self> {
+        Self::open_with(path, &ReadOptions::default())
+    }
+
+    /// Like [`open`](Self::open), with reading options (a radiance-unit override).
+    pub fn open_with(path: &Path, options: &ReadOptions) -> Result<Self> {
         let mut file = crate::io::input::open_regular(path)?;
         let file_len = file.metadata().map_err(|e| Error::io(path, e))?.len();
         let h = read_header(path, &mut file, file_len)?;
@@ -517,17 +533,41 @@ impl NpyReader {
             }
         }
         let mut warnings = Vec::new();
-        let units = match &sc.units {
-            Some(u) => parse_units(&side, "units", u)?,
-            None => {
-                warnings.push(format!(
-                    "{}: no `units`; the values are taken as spectral radiance, {}",
-                    side.display(),
-                    RadianceUnits::SpectralPerUm.as_str()
-                ));
-                RadianceUnits::SpectralPerUm
+        let mut statements = Vec::new();
+        if let Some(u) = &sc.units {
+            statements.push(("units".to_string(), u.clone()));
+        }
+        let mut common = Vec::new();
+        for (key, value) in &sc.extra {
+            match (key.as_str(), value) {
+                ("radiance_units", serde_json::Value::String(u)) => {
+                    statements.push((key.clone(), u.clone()))
+                }
+                ("fov", v) => {
+                    let values = match v {
+                        serde_json::Value::Number(n) => n.as_f64().map(|x| vec![x]),
+                        serde_json::Value::Array(a) => a.iter().map(|x| x.as_f64()).collect(),
+                        _ => None,
+                    }
+                    .ok_or_else(|| {
+                        Error::format(
+                            &side,
+                            format!("`fov` = {v}: expected degrees, [horizontal, vertical] or one horizontal value"),
+                        )
+                    })?;
+                    common.push((key.clone(), values));
+                }
+                _ => warnings.push(format!(
+                    "{}: key `{key}` is not an eoir key and was ignored",
+                    side.display()
+                )),
             }
+        }
+        let resolved = match resolve_units(&side, &statements, options, &mut warnings)? {
+            Some(r) => r,
+            None => default_units(&side, "`units` or `radiance_units`", &mut warnings),
         };
+        let units = resolved.scale.units;
         if let Some(t) = sc.frame_time_s {
             if !(t.is_finite() && t > 0.0) {
                 return Err(Error::format(
@@ -536,14 +576,16 @@ impl NpyReader {
                 ));
             }
         }
-        let geometry = geometry_from(
+        let geometry = resolve_geometry(
             &side,
             ["fov_deg", "ifov_rad", "range_m"],
             sc.fov_deg,
             sc.ifov_rad,
+            &common,
             sc.range_m,
             rows,
             cols,
+            &mut warnings,
         )?;
         let BandOrder {
             wavelength_um,
@@ -577,6 +619,8 @@ impl NpyReader {
             frames,
             frame_time_s: sc.frame_time_s,
             band_map,
+            to_eoir: resolved.scale.to_eoir,
+            units_source: resolved.source,
             warnings,
         })
     }
@@ -621,7 +665,8 @@ impl CubeReader for NpyReader {
             &mut buf,
         )?;
         let mut values = Vec::with_capacity(rows * cols);
-        decode_into(&buf, self.ty, self.big_endian, None, &mut values);
+        let scale = (self.to_eoir != 1.0).then_some((self.to_eoir, 0.0));
+        decode_into(&buf, self.ty, self.big_endian, scale, &mut values);
         drop(buf);
         let plane = Array2::from_shape_vec((rows, cols), values)
             .map_err(|e| Error::format(&self.path, e.to_string()))?;
@@ -636,6 +681,10 @@ impl CubeReader for NpyReader {
 
     fn warnings(&self) -> Vec<String> {
         self.warnings.clone()
+    }
+
+    fn units_source(&self) -> String {
+        self.units_source.clone()
     }
 }
 
@@ -683,6 +732,7 @@ pub fn write(path: &Path, cube: &Cube) -> Result<()> {
         ifov_rad: None,
         range_m: meta.geometry.and_then(|g| g.range_m),
         frame_time_s: None,
+        extra: BTreeMap::new(),
     };
     let mut json = serde_json::to_string_pretty(&sc)
         .map_err(|e| Error::format(&side, format!("cannot encode the sidecar: {e}")))?;

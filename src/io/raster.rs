@@ -319,3 +319,40 @@ pub fn write_apng_gray8(path: &Path, frames: &[Array2<u8>], delay_ms: u16) -> Re
         writer.finish().map_err(|e| png_err(path, e))
     })
 }
+
+/// Encodes 8-bit grey (`channels` = 1) or RGB (`channels` = 3) samples, row-major, as PNG
+/// bytes in memory.
+pub fn encode_png(width: usize, height: usize, channels: usize, samples: &[u8]) -> Result<Vec<u8>> {
+    let colour = match channels {
+        1 => png::ColorType::Grayscale,
+        3 => png::ColorType::Rgb,
+        n => return Err(Error::param("PNG channels", n, "1 (grey) or 3 (RGB)")),
+    };
+    if samples.len() != width * height * channels || width == 0 || height == 0 {
+        return Err(Error::param(
+            "PNG samples",
+            samples.len(),
+            format!("{width} × {height} × {channels} > 0 samples"),
+        ));
+    }
+    let (w, h) = (
+        u32::try_from(width).map_err(|_| Error::param("PNG width", width, "< 2^32"))?,
+        u32::try_from(height).map_err(|_| Error::param("PNG height", height, "< 2^32"))?,
+    );
+    let mut out = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut out, w, h);
+        enc.set_color(colour);
+        enc.set_depth(png::BitDepth::Eight);
+        let png_err = |e: png::EncodingError| Error::param("PNG encoding", e.to_string(), "valid");
+        let mut writer = enc.write_header().map_err(png_err)?;
+        writer.write_image_data(samples).map_err(png_err)?;
+        writer.finish().map_err(png_err)?;
+    }
+    Ok(out)
+}
+
+/// Writes PNG `bytes` to `path` atomically.
+pub fn write_png_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
+    super::atomic_write(path, |w| super::write_all(w, bytes, path))
+}

@@ -8,18 +8,23 @@
 //! - [`bad_pixels`]: out-of-family pixel detection from a calibration response and
 //!   replacement by the median of valid neighbours.
 //! - [`photon_transfer`]: EMVA 1288 characterisation (conversion gain K, read noise, η,
-//!   DSNU, PRNU, saturation capacity), DESIGN.md §4.10.
+//!   DSNU, PRNU, saturation capacity), docs/design.md §4.10.
 //! - [`netd`]: analytic and measured noise-equivalent temperature difference.
 //! - [`temperature`]: DN ↔ radiance calibration and apparent-temperature images,
-//!   DESIGN.md §4.9.
+//!   docs/design.md §4.9.
+//! - [`wiener`]: Wiener restoration with the sensor's own transfer function on the
+//!   detector grid (FOI report eq. 3.6).
+//! - [`edge_mtf`]: ISO 12233 slanted-edge MTF measurement.
 //!
 //! Frames stored as integers (`Array2<u16>` from an ADC) are converted with [`to_f64`].
 
 pub mod bad_pixels;
+pub mod edge_mtf;
 pub mod netd;
 pub mod nuc;
 pub mod photon_transfer;
 pub mod temperature;
+pub mod wiener;
 
 use ndarray::{Array2, ArrayView2, ArrayView3, Axis};
 

@@ -36,12 +36,14 @@
 //!   "signal_scale": 1024.5,
 //!   "rows": 480,
 //!   "cols": 640,
-//!   "rank_deficient": [[12, 40]]
+//!   "rank_deficient": [[12, 40]],
+//!   "bad_pixels": [[3, 7]]
 //! }
 //! ```
 //!
 //! `z = (x − signal_centre) / signal_scale`; `rank_deficient` lists `[row, col]` of the
-//! pixels described above. Unknown keys are errors. Both files are written atomically.
+//! pixels described above; the optional `bad_pixels` those flagged by the calibration
+//! ([`NucCoefficients::set_bad_pixels`]), to be replaced after correction. Unknown keys are errors. Both files are written atomically.
 
 use std::fs::File;
 use std::io::BufReader;
@@ -74,6 +76,9 @@ pub struct NucCoefficients {
     /// `[degree + 1, rows, cols]`, plane k = coefficient of zᵏ.
     coefficients: Array3<f64>,
     rank_deficient: Vec<(usize, usize)>,
+    /// Pixels flagged bad by the calibration (e.g. [`super::bad_pixels::detect`]), to be
+    /// replaced after correction; saved in the sidecar as `bad_pixels`.
+    bad_pixels: Vec<(usize, usize)>,
 }
 
 /// The `.json` sidecar of a coefficient file.
@@ -89,6 +94,8 @@ struct NucSidecar {
     cols: usize,
     #[serde(default)]
     rank_deficient: Vec<[usize; 2]>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    bad_pixels: Vec<[usize; 2]>,
 }
 
 const FORMAT_NAME: &str = "eoir-nuc";
@@ -205,7 +212,30 @@ impl NucCoefficients {
             signal_scale,
             coefficients,
             rank_deficient,
+            bad_pixels: Vec::new(),
         })
+    }
+
+    /// Records the bad-pixel map found during calibration (saved with the coefficients).
+    ///
+    /// Errors: a map of another shape than the coefficients.
+    pub fn set_bad_pixels(&mut self, map: &BadPixelMap) -> Result<()> {
+        check_shape("bad-pixel map", map.dim(), self.dim())?;
+        self.bad_pixels = map.positions();
+        Ok(())
+    }
+
+    /// The recorded bad pixels together with the rank-deficient ones: every pixel the
+    /// correction cannot be trusted for.
+    pub fn bad_pixel_map(&self) -> BadPixelMap {
+        let mut map = self.rank_deficient_map();
+        let (r, c) = self.dim();
+        for &(i, j) in &self.bad_pixels {
+            if i < r && j < c {
+                let _ = map.set(i, j, true);
+            }
+        }
+        map
     }
 
     /// The polynomial degree N.
@@ -282,6 +312,7 @@ impl NucCoefficients {
             rows,
             cols,
             rank_deficient: self.rank_deficient.iter().map(|&(i, j)| [i, j]).collect(),
+            bad_pixels: self.bad_pixels.iter().map(|&(i, j)| [i, j]).collect(),
         };
         let mut json = serde_json::to_string_pretty(&sc)
             .map_err(|e| Error::format(&side, format!("cannot encode the NUC sidecar: {e}")))?;
@@ -306,7 +337,7 @@ impl NucCoefficients {
     /// frame.
     pub fn load(path: &Path) -> Result<Self> {
         let side = sidecar_path(path)?;
-        let text = std::fs::read_to_string(&side).map_err(|e| Error::io(&side, e))?;
+        let text = crate::input::read_text(&side)?;
         let sc: NucSidecar = serde_json::from_str(&text)
             .map_err(|e| Error::format(&side, format!("invalid NUC sidecar: {e}")))?;
         if sc.format != FORMAT_NAME || sc.version != FORMAT_VERSION {
@@ -351,25 +382,31 @@ impl NucCoefficients {
                 ),
             ));
         }
-        let mut rank_deficient = Vec::with_capacity(sc.rank_deficient.len());
-        for [i, j] in sc.rank_deficient {
-            if i >= sc.rows || j >= sc.cols {
-                return Err(Error::format(
-                    &side,
-                    format!(
-                        "rank_deficient pixel [{i}, {j}] lies outside the {}×{} frame",
-                        sc.rows, sc.cols
-                    ),
-                ));
+        let positions = |list: Vec<[usize; 2]>, key: &str| -> Result<Vec<(usize, usize)>> {
+            let mut out = Vec::with_capacity(list.len());
+            for [i, j] in list {
+                if i >= sc.rows || j >= sc.cols {
+                    return Err(Error::format(
+                        &side,
+                        format!(
+                            "{key} pixel [{i}, {j}] lies outside the {}×{} frame",
+                            sc.rows, sc.cols
+                        ),
+                    ));
+                }
+                out.push((i, j));
             }
-            rank_deficient.push((i, j));
-        }
+            Ok(out)
+        };
+        let rank_deficient = positions(sc.rank_deficient, "rank_deficient")?;
+        let bad_pixels = positions(sc.bad_pixels, "bad_pixels")?;
         Ok(NucCoefficients {
             degree: sc.degree,
             signal_centre: sc.signal_centre,
             signal_scale: sc.signal_scale,
             coefficients,
             rank_deficient,
+            bad_pixels,
         })
     }
 }

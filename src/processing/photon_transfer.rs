@@ -1,6 +1,6 @@
 //! Photon-transfer characterisation after EMVA Standard 1288 (Release 3.1, 2016, the linear
 //! camera model and its measurement methods; Release 4.0 keeps these equations),
-//! DESIGN.md §4.10.
+//! docs/design.md §4.10.
 //!
 //! Input: a pair of dark frames, a pair of frames (A, B) at each of several uniform
 //! illumination levels (EMVA asks for ≥ 50 levels; 20 do well), optionally the mean

@@ -1,6 +1,6 @@
 //! Calibrated images: DN ↔ band radiance by a linear calibration, and apparent-temperature
 //! images through the sensor's own blackbody lookup table
-//! ([`TemperatureLut`], DESIGN.md §4.9).
+//! ([`TemperatureLut`], docs/design.md §4.9).
 //!
 //! A per-pixel radiometric calibration is a NUC whose reference is the source radiance:
 //! [`NucCoefficients::fit`](super::nuc::NucCoefficients::fit) with `(L_band, frame)` levels

@@ -1,12 +1,13 @@
 //! The spectral radiance cube, its wavelength grid, units and viewing geometry.
 //!
-//! Arrays are band-major `[band, row, col]` (DESIGN.md §3). Angular geometry uses the
+//! Arrays are band-major `[band, row, col]` (docs/design.md §3). Angular geometry uses the
 //! paraxial convention of the sensor model: a cube with `cols` samples over a horizontal
 //! field of view `fov_x` samples the scene every `ifov_x = fov_x / cols` radians.
 
 use ndarray::Array3;
 
 pub mod synthetic;
+pub mod units;
 
 use crate::error::{Error, Result};
 
@@ -28,22 +29,14 @@ impl RadianceUnits {
         }
     }
 
-    /// Parses the unit strings eoir writes and their common spellings.
+    /// Parses a unit string in eoir's own units (factor 1: W m-2 sr-1 µm-1 or W m-2 sr-1)
+    /// in any spelling [`units::parse_radiance`] understands; `None` for anything else,
+    /// including radiance in other units (use [`units::parse_radiance`] for those, which
+    /// also returns the conversion factor).
     pub fn parse(s: &str) -> Option<Self> {
-        let t: String = s
-            .to_ascii_lowercase()
-            .replace('µ', "u")
-            .replace("μ", "u")
-            .chars()
-            .filter(|c| !c.is_whitespace() && *c != '^' && *c != '*' && *c != '.' && *c != '/')
-            .collect();
-        match t.as_str() {
-            "wm-2sr-1um-1" | "wm2srum" | "wm-2sr-1micron-1" | "spectral" | "spectralradiance" => {
-                Some(RadianceUnits::SpectralPerUm)
-            }
-            "wm-2sr-1" | "wm2sr" | "band" | "bandintegrated" => Some(RadianceUnits::BandIntegrated),
-            _ => None,
-        }
+        units::parse_radiance(s)
+            .filter(|r| (r.to_eoir - 1.0).abs() < 1e-12)
+            .map(|r| r.units)
     }
 }
 

@@ -33,11 +33,11 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{require_in_range, require_non_negative, require_positive, Error, Result};
-use crate::spectrum::Spectrum;
 
-fn one() -> f64 {
-    1.0
-}
+pub(crate) use crate::spectrum::resolve_path as resolve;
+pub use crate::spectrum::SpectrumConfig;
+
+pub use crate::detector::config::DetectorConfig;
 
 fn yes() -> bool {
     true
@@ -45,125 +45,6 @@ fn yes() -> bool {
 
 fn unit_spectrum() -> SpectrumConfig {
     SpectrumConfig::Constant { value: 1.0 }
-}
-
-/// A spectral curve as written in a sensor file, selected by `kind`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
-pub enum SpectrumConfig {
-    /// The same value at every wavelength.
-    Constant {
-        /// The value (e.g. a transmission in [0, 1]).
-        value: f64,
-    },
-    /// A band-pass with 50 % points at `lo_um` and `hi_um` and linear edges.
-    TopHat {
-        /// Lower 50 % wavelength, µm.
-        lo_um: f64,
-        /// Upper 50 % wavelength, µm.
-        hi_um: f64,
-        /// Full width of each linear edge, µm (0 = sharp).
-        #[serde(default)]
-        edge_width_um: f64,
-        /// In-band value.
-        #[serde(default = "one")]
-        peak: f64,
-    },
-    /// A Gaussian response.
-    Gaussian {
-        /// Centre wavelength, µm.
-        center_um: f64,
-        /// Full width at half maximum, µm.
-        fwhm_um: f64,
-        /// Peak value.
-        #[serde(default = "one")]
-        peak: f64,
-    },
-    /// Quantum efficiency of an ideal photon detector: `peak` electrons per photon up to
-    /// the cutoff, 0 above.
-    IdealQe {
-        /// Quantum efficiency below the cutoff.
-        peak: f64,
-        /// Cutoff wavelength, µm.
-        cutoff_um: f64,
-    },
-    /// Relative responsivity per unit power of an ideal photon detector, `peak · λ/λc`
-    /// below the cutoff (the report's R_rel(λ)). Not valid as `quantum_efficiency`, which
-    /// counts electrons per photon: use `ideal_qe` there.
-    PhotonDetector {
-        /// Quantum efficiency at the cutoff wavelength.
-        peak: f64,
-        /// Cutoff wavelength, µm.
-        cutoff_um: f64,
-    },
-    /// A table given inline (linear interpolation, zero outside).
-    Table {
-        /// Wavelengths, µm, strictly increasing.
-        wavelength_um: Vec<f64>,
-        /// Values at those wavelengths.
-        value: Vec<f64>,
-    },
-    /// A two-column CSV file (µm, value), relative to the sensor file's directory.
-    Csv {
-        /// Path of the CSV file.
-        path: PathBuf,
-    },
-}
-
-impl SpectrumConfig {
-    /// Builds the spectrum, resolving relative paths against `base_dir` and naming `field`
-    /// in errors.
-    pub fn build(&self, base_dir: &Path, field: &str) -> Result<Spectrum> {
-        let named = |e: Error| match e {
-            Error::InvalidParameter {
-                field: f,
-                value,
-                expected,
-            } => Error::InvalidParameter {
-                field: format!("{field}.{f}"),
-                value,
-                expected,
-            },
-            other => other,
-        };
-        match self {
-            SpectrumConfig::Constant { value } => {
-                require_non_negative(&format!("{field}.value"), *value)?;
-                Ok(Spectrum::constant(*value))
-            }
-            SpectrumConfig::TopHat {
-                lo_um,
-                hi_um,
-                edge_width_um,
-                peak,
-            } => Spectrum::top_hat(*lo_um, *hi_um, *edge_width_um, *peak).map_err(named),
-            SpectrumConfig::Gaussian {
-                center_um,
-                fwhm_um,
-                peak,
-            } => Spectrum::gaussian(*center_um, *fwhm_um, *peak).map_err(named),
-            SpectrumConfig::IdealQe { peak, cutoff_um } => {
-                Spectrum::ideal_quantum_efficiency(*peak, *cutoff_um).map_err(named)
-            }
-            SpectrumConfig::PhotonDetector { peak, cutoff_um } => {
-                Spectrum::photon_detector(*peak, *cutoff_um).map_err(named)
-            }
-            SpectrumConfig::Table {
-                wavelength_um,
-                value,
-            } => Spectrum::table(wavelength_um.clone(), value.clone()).map_err(named),
-            SpectrumConfig::Csv { path } => Spectrum::from_csv(&resolve(base_dir, path)),
-        }
-    }
-}
-
-/// Resolves `path` against `base_dir` unless it is absolute.
-pub(crate) fn resolve(base_dir: &Path, path: &Path) -> PathBuf {
-    if path.is_absolute() {
-        path.to_path_buf()
-    } else {
-        base_dir.join(path)
-    }
 }
 
 /// `[optics]`: the lens.
@@ -185,107 +66,6 @@ pub struct OpticsConfig {
     pub cos4: bool,
 }
 
-/// `[detector]`: the focal-plane array and its electronics.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct DetectorConfig {
-    /// Number of pixel rows.
-    pub rows: usize,
-    /// Number of pixel columns.
-    pub cols: usize,
-    /// Pixel pitch (centre-to-centre spacing), m, the same in x and y.
-    pub pitch_m: f64,
-    /// Photosensitive width of a pixel along x, m (≤ pitch).
-    pub active_width_m: f64,
-    /// Photosensitive height along y, m (defaults to `active_width_m`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub active_height_m: Option<f64>,
-    /// Integration (exposure) time, s.
-    pub integration_time_s: f64,
-    /// Quantum efficiency η(λ), electrons per photon.
-    pub quantum_efficiency: SpectrumConfig,
-    /// Full-well capacity, electrons.
-    #[serde(default = "default_full_well")]
-    pub full_well_e: f64,
-    /// ADC resolution, bits (1–16).
-    #[serde(default = "default_bits")]
-    pub bits: u32,
-    /// Conversion gain K, DN per electron. Omitted: chosen so that `full_well_e` maps to
-    /// full scale.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub gain_dn_per_e: Option<f64>,
-    /// Black level (offset) added after conversion, DN.
-    #[serde(default)]
-    pub offset_dn: f64,
-    /// Constant dark current, electrons per second per pixel (absent or 0 = off).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub dark_current_e_per_s: Option<f64>,
-    /// Temperature-dependent dark current instead of the constant (see
-    /// [`crate::detector::config::DarkModelConfig`]).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub dark_model: Option<crate::detector::config::DarkModelConfig>,
-    /// Gaussian read noise, electrons rms (absent or 0 = off).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub read_noise_e: Option<f64>,
-    /// Poisson shot noise on signal + dark + background (absent = on).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub shot_noise: Option<bool>,
-    /// Optics self-emission background (see [`crate::detector::config::BackgroundConfig`]).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub background: Option<crate::detector::config::BackgroundConfig>,
-    /// Fixed-pattern noise (see [`crate::detector::config::FpnConfig`]).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub fpn: Option<crate::detector::config::FpnConfig>,
-    /// Per-pixel quadratic nonlinearity (see [`crate::detector::config::NonlinearityConfig`]).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub nonlinearity: Option<crate::detector::config::NonlinearityConfig>,
-    /// Dead, hot and stuck pixels (see [`crate::detector::config::DefectsConfig`]).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub defects: Option<crate::detector::config::DefectsConfig>,
-    /// Conversion gain chosen from a reference scene (see
-    /// [`crate::detector::config::AutoGainConfig`]); excludes `gain_dn_per_e`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub auto_gain: Option<crate::detector::config::AutoGainConfig>,
-}
-
-fn default_full_well() -> f64 {
-    1.0e7
-}
-
-fn default_bits() -> u32 {
-    14
-}
-
-impl DetectorConfig {
-    /// Photosensitive height along y, m.
-    pub fn active_height(&self) -> f64 {
-        self.active_height_m.unwrap_or(self.active_width_m)
-    }
-
-    /// Fill factor = active area / pitch².
-    pub fn fill_factor(&self) -> f64 {
-        self.active_width_m * self.active_height() / (self.pitch_m * self.pitch_m)
-    }
-
-    /// Photosensitive area A_det, m².
-    pub fn active_area_m2(&self) -> f64 {
-        self.active_width_m * self.active_height()
-    }
-
-    /// Largest DN the ADC can output, 2^bits − 1.
-    pub fn max_dn(&self) -> f64 {
-        2f64.powi(self.bits as i32) - 1.0
-    }
-
-    /// Conversion gain K, DN/e-, before any auto gain: the configured value, or full well
-    /// → full scale. The gain in use is `DetectorModel::gain_dn_per_e` (which applies
-    /// `[detector.auto_gain]`).
-    pub fn manual_gain(&self) -> f64 {
-        self.gain_dn_per_e
-            .unwrap_or_else(|| (self.max_dn() - self.offset_dn) / self.full_well_e)
-    }
-}
-
 /// `[diffraction]`: the aperture (clear or obscured, from `[optics]`). On by default.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -301,7 +81,7 @@ impl Default for DiffractionConfig {
     }
 }
 
-/// `[aberration]`: residual wavefront error (Shannon's approximation, DESIGN.md §4.5).
+/// `[aberration]`: residual wavefront error (Shannon's approximation, docs/design.md §4.5).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AberrationConfig {
@@ -386,7 +166,7 @@ pub enum TurbulenceConfig {
     },
 }
 
-/// `[aerosol]`: aerosol forward-scattering transfer function (DESIGN.md §4.8).
+/// `[aerosol]`: aerosol forward-scattering transfer function (docs/design.md §4.8).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AerosolConfig {
@@ -791,43 +571,34 @@ impl SensorConfig {
                 ));
             }
         }
-        // Spectra are checked by building them (this also reads CSV files).
-        self.spectral_response()?;
-        if let Some(c) = &self.cfa {
-            c.red.build(&self.base_dir, "cfa.red")?;
-            c.green.build(&self.base_dir, "cfa.green")?;
-            c.blue.build(&self.base_dir, "cfa.blue")?;
+        // Inline spectra are checked by building them; files are read by `Sensor::build`.
+        let spectra = [
+            (&self.filter, "filter"),
+            (&self.optics.transmission, "optics.transmission"),
+            (&d.quantum_efficiency, "detector.quantum_efficiency"),
+        ];
+        let atmosphere = self
+            .atmosphere
+            .as_ref()
+            .map(|a| (&a.transmission, "atmosphere.transmission"));
+        let cfa = self.cfa.iter().flat_map(|c| {
+            [
+                (&c.red, "cfa.red"),
+                (&c.green, "cfa.green"),
+                (&c.blue, "cfa.blue"),
+            ]
+        });
+        for (spectrum, field) in spectra.into_iter().chain(atmosphere).chain(cfa) {
+            if !matches!(spectrum, SpectrumConfig::Csv { .. }) {
+                spectrum.build(&self.base_dir, field)?;
+            }
         }
         Ok(())
     }
 
-    /// The dimensionless spectral response of the chain, electrons per photon at the
-    /// aperture: τ_filter · τ_optics · τ_atm · η (DESIGN.md §1, spectral chain).
-    pub fn spectral_response(&self) -> Result<Spectrum> {
-        let dir = &self.base_dir;
-        let fraction = crate::spectrum::require_fraction;
-        let mut s = fraction("filter", self.filter.build(dir, "filter")?)?
-            .product(&fraction(
-                "optics.transmission",
-                self.optics.transmission.build(dir, "optics.transmission")?,
-            )?)
-            .product(&fraction(
-                "detector.quantum_efficiency",
-                self.detector
-                    .quantum_efficiency
-                    .build(dir, "detector.quantum_efficiency")?,
-            )?);
-        if let Some(a) = &self.atmosphere {
-            s = s.product(&fraction(
-                "atmosphere.transmission",
-                a.transmission.build(dir, "atmosphere.transmission")?,
-            )?);
-        }
-        Ok(s)
-    }
-
-    /// The camera equation for this sensor (on axis; DESIGN.md §4.1).
-    pub fn camera_equation(&self) -> Result<crate::radiometry::CameraEquation> {
+    /// The camera equation for this sensor (on axis; docs/design.md §4.1). Resolved once
+    /// by [`super::Sensor::build`]; stages use [`super::Sensor::camera`].
+    pub(crate) fn camera_equation(&self) -> Result<crate::radiometry::CameraEquation> {
         crate::radiometry::CameraEquation::new(
             self.detector.integration_time_s,
             self.detector.active_area_m2(),

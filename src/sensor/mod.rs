@@ -1,5 +1,7 @@
-//! The sensor: its configuration schema ([`config`]) and the cascade of transfer functions
-//! it implies ([`otf`]).
+//! The sensor: its configuration schema ([`config`], with the `[detector]` table from
+//! [`crate::detector::config`]), the embedded presets ([`presets`]), the cascade of
+//! transfer functions it implies ([`otf`]), and the resolved [`Sensor`] that every stage of
+//! a run takes ([`resolved`]: built once, validated, every referenced file read once).
 //!
 //! The cascade lives here rather than in `optics` because it combines optics, atmosphere
 //! and motion terms as one sensor description configures them; `optics`, `atmosphere` and
@@ -8,6 +10,8 @@
 pub mod config;
 pub mod otf;
 pub mod presets;
+pub mod resolved;
 
 pub use config::{apply_override, SensorConfig, SpectrumConfig};
 pub use otf::{Component, FrequencyGrid, GridOtf, SystemOtf};
+pub use resolved::Sensor;

@@ -1,6 +1,6 @@
 //! The system transfer function: the product of every enabled component of a sensor.
 //!
-//! Frequencies are angular, cycles/rad in object space (DESIGN.md §3). Components that do
+//! Frequencies are angular, cycles/rad in object space (docs/design.md §3). Components that do
 //! not depend on wavelength (detector footprint, motion, jitter, Gaussian, measured MTF)
 //! are evaluated once per frequency grid; the others (diffraction with aberration and
 //! defocus, turbulence, aerosol) once per wavelength.
@@ -17,7 +17,7 @@ use super::config::{resolve, SensorConfig, TurbulenceConfig};
 /// One transfer-function component; its name is the sensor-file section that enables it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Component {
-    /// Aperture diffraction, clear or centrally obscured (DESIGN.md §4.2–4.3).
+    /// Aperture diffraction, clear or centrally obscured (docs/design.md §4.2–4.3).
     Diffraction,
     /// Shannon aberration factor (§4.5).
     Aberration,
@@ -95,7 +95,7 @@ enum DefocusAmount {
 /// How the turbulence r0 is obtained at a wavelength.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Turbulence {
-    /// Horizontal path (closed form, DESIGN.md §4.7).
+    /// Horizontal path (closed form, docs/design.md §4.7).
     Horizontal { cn2: f64, range_m: f64 },
     /// Slant path: the spherical-wave weighted ∫Cn² (m^1/3), computed once.
     Slant { weighted_cn2: f64 },
@@ -261,6 +261,31 @@ impl SystemOtf {
         }
     }
 
+    /// Defocus edge wavefront error W020 (waves) at a wavelength, if defocus is enabled:
+    /// the configured value, or `δz / (8 N² λ)` for a focus shift (docs/design.md §4.4).
+    pub fn defocus_w020_waves(&self, wavelength_um: f64) -> Option<f64> {
+        match self.defocus? {
+            DefocusAmount::Waves(w) => Some(w),
+            DefocusAmount::FocusShift(z) => Some(optics::defocus_w020_from_focus_shift(
+                z,
+                self.f_number,
+                wavelength_um * 1e-6,
+            )),
+        }
+    }
+
+    /// Whether the defocus amount depends on wavelength (given as a focus shift, so
+    /// W020 ∝ 1/λ) rather than as a fixed number of waves.
+    pub fn defocus_is_chromatic(&self) -> bool {
+        matches!(self.defocus, Some(DefocusAmount::FocusShift(_)))
+    }
+
+    /// Aerosol particle radius a (m), if the aerosol component is enabled: its transfer
+    /// function depends on frequency through ρλ/a (docs/design.md §4.8).
+    pub fn aerosol_particle_radius_m(&self) -> Option<f64> {
+        self.aerosol.as_ref().map(|a| a.particle_radius_m)
+    }
+
     /// Value of one component at angular frequency (fx, fy) cycles/rad and wavelength λ.
     /// A component that is not enabled evaluates to 1.
     pub fn component(&self, c: Component, fx: f64, fy: f64, wavelength_um: f64) -> f64 {
@@ -292,12 +317,9 @@ impl SystemOtf {
                     }
                     None => 0.0,
                 };
-                if x >= 1.0 {
-                    // Beyond the cutoff the diffraction term is 0; the factor is moot.
-                    1.0
-                } else {
-                    optics::defocus(x, w020)
-                }
+                // 0 beyond the cutoff D/λ (optics::defocus): no aperture term passes
+                // anything there, even with `[diffraction] enabled = false`.
+                optics::defocus(x, w020)
             }
             Component::Detector => optics::detector_footprint(
                 fx,

@@ -42,7 +42,7 @@ use crate::error::{Error, Result};
 use crate::spectrum::Spectrum;
 
 use super::config::toml_error;
-use super::config::{SensorConfig, SpectrumConfig};
+use super::config::{CfaConfig, SensorConfig, SpectrumConfig};
 
 /// The embedded presets: (name, TOML text).
 pub const PRESETS: &[(&str, &str)] = &[
@@ -478,26 +478,25 @@ pub fn resolved_toml(name: &str, options: &[String]) -> Result<String> {
 ///
 /// Errors: `config` has no `[cfa]`, `channel` > 2, or a spectrum cannot be built.
 pub fn cfa_channel(config: &SensorConfig, channel: usize) -> Result<SensorConfig> {
-    let cfa = config.cfa.as_ref().ok_or_else(|| {
-        Error::param(
-            "cfa",
-            "absent",
-            format!("a [cfa] section in sensor `{}`", config.name),
-        )
-    })?;
-    let dye = match channel {
-        crate::cfa::RED => &cfa.red,
-        crate::cfa::GREEN => &cfa.green,
-        crate::cfa::BLUE => &cfa.blue,
-        other => {
-            return Err(Error::param(
-                "cfa channel",
-                other,
-                "0 (red), 1 (green) or 2 (blue)",
-            ))
-        }
-    };
-    let filter = spectrum_config_product(&config.filter, dye, &config.base_dir)?;
+    let cfa = cfa_table(config)?;
+    let dye = dye_config(cfa, channel)?;
+    let dir = &config.base_dir;
+    let filter = config.filter.build(dir, "filter")?;
+    let dye = dye.build(dir, "cfa")?;
+    cfa_channel_with(config, channel, &filter, &dye)
+}
+
+/// As [`cfa_channel`], with the filter and dye spectra already built (by
+/// [`super::Sensor::build`], which reads each file once).
+pub(crate) fn cfa_channel_with(
+    config: &SensorConfig,
+    channel: usize,
+    filter_spectrum: &Spectrum,
+    dye_spectrum: &Spectrum,
+) -> Result<SensorConfig> {
+    let cfa = cfa_table(config)?;
+    let dye = dye_config(cfa, channel)?;
+    let filter = spectrum_config_product(&config.filter, dye, filter_spectrum, dye_spectrum)?;
     let mut out = config.clone();
     out.filter = filter;
     out.cfa = None;
@@ -507,6 +506,31 @@ pub fn cfa_channel(config: &SensorConfig, channel: usize) -> Result<SensorConfig
     );
     out.validate()?;
     Ok(out)
+}
+
+/// The `[cfa]` table of `config`, or an error naming the sensor.
+fn cfa_table(config: &SensorConfig) -> Result<&CfaConfig> {
+    config.cfa.as_ref().ok_or_else(|| {
+        Error::param(
+            "cfa",
+            "absent",
+            format!("a [cfa] section in sensor `{}`", config.name),
+        )
+    })
+}
+
+/// The dye of colour `channel` (0 red, 1 green, 2 blue).
+fn dye_config(cfa: &CfaConfig, channel: usize) -> Result<&SpectrumConfig> {
+    match channel {
+        crate::cfa::RED => Ok(&cfa.red),
+        crate::cfa::GREEN => Ok(&cfa.green),
+        crate::cfa::BLUE => Ok(&cfa.blue),
+        other => Err(Error::param(
+            "cfa channel",
+            other,
+            "0 (red), 1 (green) or 2 (blue)",
+        )),
+    }
 }
 
 /// `factor × s` as a spectrum description, exactly where the kind allows it.
@@ -554,7 +578,8 @@ fn scaled_config(s: &SpectrumConfig, factor: f64) -> Option<SpectrumConfig> {
 fn spectrum_config_product(
     a: &SpectrumConfig,
     b: &SpectrumConfig,
-    base_dir: &Path,
+    a_spectrum: &Spectrum,
+    b_spectrum: &Spectrum,
 ) -> Result<SpectrumConfig> {
     if let SpectrumConfig::Constant { value } = a {
         if let Some(s) = scaled_config(b, *value) {
@@ -566,9 +591,7 @@ fn spectrum_config_product(
             return Ok(s);
         }
     }
-    let product: Spectrum = a
-        .build(base_dir, "filter")?
-        .product(&b.build(base_dir, "cfa")?);
+    let product: Spectrum = a_spectrum.product(b_spectrum);
     let (lo, hi) = product.support_um();
     if !(lo.is_finite() && hi.is_finite() && hi > lo) {
         return Err(Error::param(

@@ -5,12 +5,12 @@
 use eoir::calibration::{measured_netd, Calibration, CalibrationOptions};
 use eoir::detector::{DetectorInstance, DetectorModel};
 use eoir::radiometry::planck_spectral_radiance;
-use eoir::sensor::{presets, SensorConfig};
+use eoir::sensor::{presets, Sensor};
 use ndarray::Array2;
 
 const SEED: u64 = 7;
 
-fn sensor(extra: &[&str]) -> SensorConfig {
+fn sensor(extra: &[&str]) -> Sensor {
     let mut o: Vec<String> = [
         "detector.rows=64",
         "detector.cols=80",
@@ -23,12 +23,12 @@ fn sensor(extra: &[&str]) -> SensorConfig {
     .map(|s| s.to_string())
     .collect();
     o.extend(extra.iter().map(|s| s.to_string()));
-    presets::load("multimir", &[], &o).unwrap()
+    Sensor::build(&presets::load("multimir", &[], &o).unwrap()).unwrap()
 }
 
-fn setup(extra: &[&str]) -> (SensorConfig, DetectorModel, DetectorInstance) {
+fn setup(extra: &[&str]) -> (Sensor, DetectorModel, DetectorInstance) {
     let s = sensor(extra);
-    let model = DetectorModel::from_config(&s).unwrap();
+    let model = s.detector().clone();
     let inst = DetectorInstance::new(&model, SEED).unwrap();
     (s, model, inst)
 }
@@ -157,7 +157,7 @@ fn in_band_radiance_matches_independent_quadrature() {
     let (s, model, inst) = setup(&[]);
     let cal = Calibration::new(&s, &model, &inst, &CalibrationOptions::default()).unwrap();
     assert!((cal.peak_response() - 0.85 * 0.9 * 0.7).abs() < 1e-12);
-    let resp = s.spectral_response().unwrap();
+    let resp = s.response().clone();
     for t in [250.0, 300.0, 320.0] {
         let (a, b, n) = (4.0, 5.6, 20_000usize);
         let h = (b - a) / n as f64;
@@ -281,8 +281,9 @@ fn cos4_rolloff_is_flattened_by_the_nuc() {
         .map(String::from),
     )
     .unwrap();
+    let s = Sensor::build(&s).unwrap();
     assert!(s.optics.cos4);
-    let model = DetectorModel::from_config(&s).unwrap();
+    let model = s.detector().clone();
     let inst = DetectorInstance::new(&model, SEED).unwrap();
     let cal = Calibration::new(&s, &model, &inst, &CalibrationOptions::default()).unwrap();
     let (raw, cor) = cal.residual_nonuniformity(&inst, 310.0).unwrap();
@@ -304,4 +305,27 @@ fn cos4_rolloff_is_flattened_by_the_nuc() {
     let (mt, _, _) = mean_std(t.iter().copied());
     assert!((mt - 300.0).abs() < 0.05, "mean {mt}");
     assert!((corner - 300.0).abs() < 5.0 * netd, "corners {corner}");
+}
+
+/// The radiance table is not trimmed where the DN saturate: default MultimIR DN saturate
+/// near 323 K, yet an in-band radiance of a 400 K blackbody inverts to 400 K (issue 12).
+#[test]
+fn radiance_lut_is_not_limited_by_the_adc() {
+    let s = presets::load(
+        "multimir",
+        &[],
+        &["detector.rows=8".into(), "detector.cols=8".into()],
+    )
+    .and_then(|c| Sensor::build(&c))
+    .unwrap();
+    let model = s.detector().clone();
+    let inst = DetectorInstance::new(&model, 1).unwrap();
+    let cal = Calibration::new(&s, &model, &inst, &CalibrationOptions::default()).unwrap();
+    let (_, dn_top) = cal.lut_range_k();
+    assert!(dn_top < 400.0, "DN table top {dn_top} K");
+    for t in [350.0, 400.0, 480.0] {
+        let l = cal.band_radiance(t);
+        let back = cal.radiance_lut().temperature_or_nan(l);
+        assert!((back - t).abs() < 1e-3, "{t} K -> {back} K");
+    }
 }

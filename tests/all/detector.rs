@@ -9,7 +9,7 @@ use ndarray::Array2;
 
 use eoir::detector::{DetectorInstance, DetectorModel};
 use eoir::radiometry::planck_spectral_radiance;
-use eoir::sensor::SensorConfig;
+use eoir::sensor::{Sensor, SensorConfig};
 
 const H: f64 = 6.626_070_15e-34;
 const C: f64 = 299_792_458.0;
@@ -42,7 +42,10 @@ quantum_efficiency = {{ kind = "ideal_qe", peak = 0.7, cutoff_um = 5.2 }}
 }
 
 fn model(rows: usize, cols: usize, extra: &[&str]) -> DetectorModel {
-    DetectorModel::from_config(&sensor(rows, cols, extra).unwrap()).unwrap()
+    Sensor::build(&sensor(rows, cols, extra).unwrap())
+        .unwrap()
+        .detector()
+        .clone()
 }
 
 fn flat(rows: usize, cols: usize, e: f64) -> Array2<f64> {
@@ -465,7 +468,7 @@ fn reproducible_independent_streams_and_thread_count() {
 
 /// Trapezoid Σ of S(λ) L(λ) λ/(hc) over a fine grid: the band integral by another route.
 fn photon_integral(s: &SensorConfig, lo: f64, hi: f64, radiance: impl Fn(f64) -> f64) -> f64 {
-    let resp = s.spectral_response().unwrap();
+    let resp = Sensor::build(s).unwrap().response().clone();
     let n = 20_000;
     let h = (hi - lo) / n as f64;
     (0..=n)
@@ -506,7 +509,7 @@ fn auto_gain_puts_the_reference_blackbody_at_the_fraction() {
         ],
     )
     .unwrap();
-    let m = DetectorModel::from_config(&s).unwrap();
+    let m = Sensor::build(&s).map(|s| s.detector().clone()).unwrap();
     let signal =
         etendue_time(&s) * photon_integral(&s, 2.9, 5.3, |l| planck_spectral_radiance(l, 300.0));
     let e_total = signal + 1e8 * 1e-3 + m.background_e();
@@ -518,7 +521,10 @@ fn auto_gain_puts_the_reference_blackbody_at_the_fraction() {
     assert!(((mu - target) / target).abs() < 0.005, "{mu} vs {target}");
     let k = m.gain_dn_per_e();
     assert!(((k * e_total + 1000.0 - target) / target).abs() < 1e-4);
-    let k2 = eoir::detector::auto_gain(&s, s.detector.auto_gain.as_ref().unwrap()).unwrap();
+    let k2 = Sensor::build(&s)
+        .unwrap()
+        .auto_gain(s.detector.auto_gain.as_ref().unwrap())
+        .unwrap();
     assert_eq!(k, k2);
 }
 
@@ -541,7 +547,7 @@ fn auto_gain_visible_uses_reflected_sun() {
         ],
     )
     .unwrap();
-    let m = DetectorModel::from_config(&s).unwrap();
+    let m = Sensor::build(&s).map(|s| s.detector().clone()).unwrap();
     let (kind, e_ref) = m.auto_gain_reference().unwrap();
     assert_eq!(kind, eoir::detector::AutoGainReference::ReflectedSun);
     let omega_sun = std::f64::consts::PI * (6.957e8f64 / 1.495_978_707e11).powi(2);
@@ -583,7 +589,7 @@ fn background_is_grey_body_through_filter_and_qe_only() {
         ],
     )
     .unwrap();
-    let m = DetectorModel::from_config(&s).unwrap();
+    let m = Sensor::build(&s).map(|s| s.detector().clone()).unwrap();
     let bq = planck_spectral_radiance(10.0, 300.0) * 10e-6 / (H * C);
     let expected = 0.1 * etendue_time(&s) * 0.5 * bq * 0.01;
     assert!(
@@ -614,7 +620,11 @@ fn dark_current_models() {
             ],
         )
         .unwrap();
-        DetectorModel::from_config(&s).unwrap().dark_e() / 1e-3
+        Sensor::build(&s)
+            .map(|s| s.detector().clone())
+            .unwrap()
+            .dark_e()
+            / 1e-3
     };
     for (kind, p, ea) in [
         ("diffusion", 3.0, 0.25),
@@ -736,7 +746,7 @@ fn invalid_parameters_name_the_field() {
         .to_string();
     assert!(e.contains("bogus"), "{e}");
     let missing = sensor(8, 8, &["detector.fpn.gain_map=\"/nonexistent/gain.tiff\""]).unwrap();
-    let e = DetectorModel::from_config(&missing)
+    let e = Sensor::build(&missing)
         .expect_err("missing map")
         .to_string();
     assert!(e.contains("gain.tiff"), "{e}");
@@ -778,7 +788,7 @@ fn measured_maps_are_loaded_relative_to_the_sensor_file() {
     )
     .unwrap();
     s.base_dir = dir.path().to_path_buf();
-    let m = DetectorModel::from_config(&s).unwrap();
+    let m = Sensor::build(&s).map(|s| s.detector().clone()).unwrap();
     let inst = DetectorInstance::new(&m, 1).unwrap();
     let dn = inst.expose(&flat(r, c, 1000.0), 0).unwrap();
     for ((i, j), v) in dn.indexed_iter() {
@@ -791,7 +801,10 @@ fn measured_maps_are_loaded_relative_to_the_sensor_file() {
     }
     let mut wrong = s.clone();
     wrong.detector.rows = 7;
-    let e = DetectorModel::from_config(&wrong).unwrap_err().to_string();
+    let e = Sensor::build(&wrong)
+        .map(|s| s.detector().clone())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("detector.fpn.gain_map"), "{e}");
 }
 
@@ -848,7 +861,7 @@ fn detector_tables_round_trip_through_toml() {
     let text = s.to_toml_string().unwrap();
     let back = SensorConfig::from_toml_str(&text, "round", PathBuf::from("."), &[]).unwrap();
     assert_eq!(back.detector, s.detector, "{text}");
-    let m = DetectorModel::from_config(&back).unwrap();
+    let m = Sensor::build(&back).map(|s| s.detector().clone()).unwrap();
     // Silicon G-R dark current 7 K above the reference: the rule of thumb "doubles every
     // ~8–9 K near room temperature" gives 1.7–1.8.
     let ratio = m.dark_e() / s.detector.integration_time_s / 50.0;

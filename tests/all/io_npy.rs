@@ -261,10 +261,6 @@ fn missing_or_wrong_sidecar_names_the_file_and_what_it_needs() {
     );
 
     for (json, needle) in [
-        (
-            r#"{"wavelength_um": [8, 9], "colour": "red"}"#,
-            "unknown field `colour`",
-        ),
         (r#"{"fwhm_um": [1, 1]}"#, "missing field `wavelength_um`"),
         (
             r#"{"wavelength_um": [8, 9, 10]}"#,

@@ -251,7 +251,7 @@ fn cutoff_frequency() {
 // Defocus
 // ---------------------------------------------------------------------------------------
 
-/// Exact defocused OTF of a clear circular pupil (DESIGN.md §4.4):
+/// Exact defocused OTF of a clear circular pupil (docs/design.md §4.4):
 /// (4/π) ∫₀^{acos X} sin²φ · cos(8π W020 X (cos φ − X)) dφ, composite Simpson, 4000
 /// intervals.
 fn defocus_otf_exact(x: f64, w020: f64) -> f64 {

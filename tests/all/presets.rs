@@ -4,7 +4,7 @@
 
 use eoir::cfa::{BLUE, GREEN, RED};
 use eoir::sensor::presets::{self, PresetInfo};
-use eoir::sensor::{SensorConfig, SpectrumConfig, SystemOtf};
+use eoir::sensor::{Sensor, SensorConfig, SpectrumConfig, SystemOtf};
 
 fn opts(list: &[&str]) -> Vec<String> {
     list.iter().map(|s| s.to_string()).collect()
@@ -23,7 +23,7 @@ fn info(name: &str) -> PresetInfo {
 
 /// Mean wavelength of the chain's response, by midpoint quadrature on a 0.5 nm grid.
 fn centroid_um(s: &SensorConfig) -> f64 {
-    let r = s.spectral_response().unwrap();
+    let r = Sensor::build(s).unwrap().response().clone();
     let (lo, hi) = r.support_um();
     let hi = hi.min(20.0);
     let n = ((hi - lo) / 0.0005).ceil() as usize;
@@ -66,7 +66,7 @@ fn every_preset_and_option_combination_loads_and_validates() {
             let s = presets::load(&p.name, &combo, &[])
                 .unwrap_or_else(|e| panic!("{} {combo:?}: {e}", p.name));
             SystemOtf::new(&s).unwrap();
-            let (lo, hi) = s.spectral_response().unwrap().support_um();
+            let (lo, hi) = Sensor::build(&s).unwrap().response().clone().support_um();
             assert!(hi > lo, "{} {combo:?}: empty band", p.name);
             // The choices are recorded.
             for c in &combo {
@@ -191,7 +191,7 @@ fn bands_lie_where_the_report_puts_them() {
         .iter()
         .map(|b| load("emerald", &[&format!("band={b}")]))
         .collect();
-    let support = |s: &SensorConfig| s.spectral_response().unwrap().support_um();
+    let support = |s: &SensorConfig| Sensor::build(s).unwrap().response().clone().support_um();
     assert!(support(&e[0]).1 < 3.95);
     assert!(support(&e[2]).0 > 4.55);
     let s2 = support(&e[1]);
@@ -200,7 +200,7 @@ fn bands_lie_where_the_report_puts_them() {
     for name in ["ccd", "ccd-bayer", "threeband"] {
         for combo in info(name).option_combinations() {
             let s = presets::load(name, &combo, &[]).unwrap();
-            let r = s.spectral_response().unwrap();
+            let r = Sensor::build(&s).unwrap().response().clone();
             assert_eq!(r.eval(1.1), 0.0);
             assert_eq!(r.eval(1.2), 0.0);
         }
@@ -384,11 +384,11 @@ fn bayer_channels_are_the_chain_times_each_colour_filter() {
     let s = load("ccd-bayer", &[]);
     let cfa = s.cfa.clone().expect("ccd-bayer has a [cfa] section");
     assert_eq!(cfa.pattern, eoir::cfa::CfaPattern::Rggb);
-    let base = s.spectral_response().unwrap();
+    let base = Sensor::build(&s).unwrap().response().clone();
     for (ch, dye) in [(RED, &cfa.red), (GREEN, &cfa.green), (BLUE, &cfa.blue)] {
         let c = presets::cfa_channel(&s, ch).unwrap();
         assert!(c.cfa.is_none());
-        let r = c.spectral_response().unwrap();
+        let r = Sensor::build(&c).unwrap().response().clone();
         let d = dye.build(std::path::Path::new("."), "dye").unwrap();
         // Pointwise product, checked at wavelengths that are not table nodes.
         for i in 0..200 {
@@ -429,7 +429,7 @@ fn bayer_channels_are_the_chain_times_each_colour_filter() {
                 .build(std::path::Path::new("."), "qe")
                 .unwrap(),
         );
-    let r = c.spectral_response().unwrap();
+    let r = Sensor::build(&c).unwrap().response().clone();
     for i in 0..300 {
         let l = 0.47 + 0.00053 * i as f64;
         let expect = f.eval(l) * d.eval(l) * q.eval(l);

@@ -4,11 +4,11 @@
 use eoir::io::MemoryCube;
 use eoir::pipeline::{self, RunOptions};
 use eoir::scene::synthetic::{self, SceneParams};
-use eoir::sensor::{presets, SensorConfig};
+use eoir::sensor::{presets, Sensor};
 
 /// A scene covering the sensor's band and field of view at 2× oversampling.
-fn scene_for(sensor: &SensorConfig, kind: &str) -> eoir::scene::Cube {
-    let (lo, hi) = sensor.spectral_response().unwrap().support_um();
+fn scene_for(sensor: &Sensor, kind: &str) -> eoir::scene::Cube {
+    let (lo, hi) = sensor.response().support_um();
     let params = SceneParams {
         rows: sensor.detector.rows,
         cols: sensor.detector.cols,
@@ -35,6 +35,7 @@ fn every_preset_and_option_runs_the_demo_scene() {
     for info in presets::list() {
         for combo in info.option_combinations() {
             let sensor = presets::load(&info.name, &combo, &small)
+                .and_then(|c| Sensor::build(&c))
                 .unwrap_or_else(|e| panic!("{} {combo:?}: {e}", info.name));
             let cube = scene_for(&sensor, "thermal");
             let mut reader = MemoryCube::new(cube);
@@ -44,7 +45,7 @@ fn every_preset_and_option_runs_the_demo_scene() {
             assert_eq!(dn.dim(), (24, 32));
             let max = sensor.detector.max_dn();
             assert!(dn.iter().all(|v| (*v as f64) <= max));
-            let mean_e = out.report["signal"]["mean_electrons"].as_f64().unwrap();
+            let mean_e = out.report.signal.mean_electrons;
             assert!(mean_e > 0.0, "{} {combo:?}: no signal", info.name);
             runs += 1;
         }
@@ -61,6 +62,7 @@ fn multimir_300k_blackbody_lands_at_half_range() {
         &["filter=4".into(), "optics=100mm".into()],
         &["detector.rows=48".into(), "detector.cols=64".into()],
     )
+    .and_then(|c| Sensor::build(&c))
     .unwrap();
     let cube = scene_for(&sensor, "blackbody");
     let mut reader = MemoryCube::new(cube);
@@ -100,7 +102,9 @@ fn threeband_composite_puts_vegetation_in_red() {
     let scene = synthetic::thermal_scene(&params, &synthetic::Environment::default()).unwrap();
     let mut outs = Vec::new();
     for ch in ["1", "2", "3"] {
-        let s = presets::load("threeband", &[format!("channel={ch}")], &small).unwrap();
+        let s =
+            Sensor::build(&presets::load("threeband", &[format!("channel={ch}")], &small).unwrap())
+                .unwrap();
         let mut reader = MemoryCube::new(scene.cube.clone());
         let out = pipeline::run(&s, &mut reader, &RunOptions::default(), |_, _| {}).unwrap();
         outs.push((eoir::report::mean_wavelength_um(&s).unwrap(), out));
@@ -143,7 +147,7 @@ fn bayer_grey_scene_comes_out_grey() {
         "detector.rows=48".to_string(),
         "detector.cols=64".to_string(),
     ];
-    let s = presets::load("ccd-bayer", &[], &small).unwrap();
+    let s = Sensor::build(&presets::load("ccd-bayer", &[], &small).unwrap()).unwrap();
     let params = SceneParams {
         rows: 48,
         cols: 64,
@@ -184,7 +188,8 @@ fn threeband_nir_scene_mean_sits_at_half_range() {
         "detector.rows=48".to_string(),
         "detector.cols=64".to_string(),
     ];
-    let s = presets::load("threeband", &["channel=3".into()], &small).unwrap();
+    let s =
+        Sensor::build(&presets::load("threeband", &["channel=3".into()], &small).unwrap()).unwrap();
     let params = SceneParams {
         rows: 48,
         cols: 64,

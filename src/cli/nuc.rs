@@ -1,0 +1,242 @@
+//! `eoir nuc fit` / `eoir nuc apply`: per-pixel polynomial non-uniformity correction from
+//! recorded blackbody frames (FOI report §4.1, eq. 4.1–4.3), for real cameras.
+//!
+//! `fit` groups the frames by temperature (N frames and T temperatures: N/T consecutive
+//! frames per temperature, in the order of `--temperatures-k`), averages each group per
+//! pixel, and fits each pixel's polynomial onto the reference ⟨Y_k⟩, the array mean at
+//! temperature k (FOI eq. 4.1–4.2; the correction maps every pixel onto the mean response
+//! of the array). Bad pixels are found from the coldest and warmest averages
+//! (`processing::bad_pixels::detect`, median/MAD tests) and stored with the coefficients.
+//! `apply` evaluates the polynomials and replaces the bad pixels by the median of their
+//! valid neighbours.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use ndarray::{Array2, Array3, Axis};
+
+use eoir::io::raster;
+use eoir::processing::bad_pixels::{self, BadPixelCriteria};
+use eoir::processing::nuc::NucCoefficients;
+use eoir::processing::{mean_frame, to_f64};
+
+/// Arguments of `eoir nuc`.
+#[derive(Debug, clap::Args)]
+pub struct NucArgs {
+    #[command(subcommand)]
+    pub command: NucCommand,
+}
+
+/// The `nuc` subcommands.
+#[derive(Debug, clap::Subcommand)]
+pub enum NucCommand {
+    /// Fit per-pixel NUC polynomials and a bad-pixel map from blackbody frames.
+    Fit(FitArgs),
+    /// Correct an image with fitted coefficients.
+    Apply(ApplyArgs),
+}
+
+/// Arguments of `eoir nuc fit`.
+#[derive(Debug, clap::Args)]
+pub struct FitArgs {
+    /// Frames (16-bit PNG or TIFF DN): N/T consecutive frames per temperature.
+    #[arg(required = true)]
+    pub frames: Vec<PathBuf>,
+    /// Blackbody temperatures, K, comma separated, in the order of the frames.
+    #[arg(long, value_delimiter = ',', required = true)]
+    pub temperatures_k: Vec<f64>,
+    /// Polynomial degree (1 = two-point gain/offset).
+    #[arg(long, default_value_t = 1)]
+    pub degree: usize,
+    /// Output: `NAME.json` (sidecar) and `NAME.npy` (coefficients) are written.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+/// Arguments of `eoir nuc apply`.
+#[derive(Debug, clap::Args)]
+pub struct ApplyArgs {
+    /// Image to correct (16-bit PNG or TIFF DN).
+    pub image: PathBuf,
+    /// Coefficients written by `eoir nuc fit` (the .json or the .npy).
+    #[arg(long)]
+    pub nuc: PathBuf,
+    /// Output: `.tif`/`.tiff` (32-bit float) or `.png` (16-bit, rounded and clipped).
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+/// Runs `eoir nuc`.
+pub fn nuc(args: NucArgs) -> Result<()> {
+    match args.command {
+        NucCommand::Fit(a) => fit(a),
+        NucCommand::Apply(a) => apply(a),
+    }
+}
+
+/// Reads a 16-bit DN image (PNG or TIFF) as f64.
+pub fn read_dn(path: &Path) -> Result<Array2<f64>> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let img = match ext.as_str() {
+        "png" => raster::read_png_u16(path)?,
+        "tif" | "tiff" => raster::read_tiff_u16(path)?,
+        _ => bail!(
+            "{}: unsupported image type `.{ext}`; expected a 16-bit greyscale .png or .tif/.tiff",
+            path.display()
+        ),
+    };
+    Ok(to_f64(img.view()))
+}
+
+/// The `.npy` coefficient path for an output/nuc argument ending in `.json` or `.npy`.
+fn npy_path(path: &Path) -> Result<PathBuf> {
+    match path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .as_deref()
+    {
+        Some("json") | Some("npy") => Ok(path.with_extension("npy")),
+        _ => bail!(
+            "{}: the NUC file name must end in .json (the .npy coefficients are written beside it)",
+            path.display()
+        ),
+    }
+}
+
+fn fit(a: FitArgs) -> Result<()> {
+    let npy = npy_path(&a.output)?;
+    let t = &a.temperatures_k;
+    if let Some(v) = t.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
+        bail!("--temperatures-k: {v} is not a temperature; give finite values > 0 K");
+    }
+    for (i, x) in t.iter().enumerate() {
+        if t[..i].contains(x) {
+            bail!("--temperatures-k: {x} K appears twice; give each blackbody temperature once");
+        }
+    }
+    if t.len() < a.degree + 1 {
+        bail!(
+            "--temperatures-k: {} temperature(s) cannot determine a degree-{} polynomial; give at least {}",
+            t.len(),
+            a.degree,
+            a.degree + 1
+        );
+    }
+    if a.frames.len() % t.len() != 0 {
+        bail!(
+            "{} frames for {} temperatures: give the same number of frames for every temperature (N/T consecutive frames each)",
+            a.frames.len(),
+            t.len()
+        );
+    }
+    let per = a.frames.len() / t.len();
+    let mut means: Vec<Array2<f64>> = Vec::with_capacity(t.len());
+    let mut shape = None;
+    for group in a.frames.chunks(per) {
+        let mut stack: Option<Array3<f64>> = None;
+        for (i, p) in group.iter().enumerate() {
+            let img = read_dn(p)?;
+            let dim = img.dim();
+            match shape {
+                None => shape = Some((dim, p.clone())),
+                Some((s, ref first)) if s != dim => bail!(
+                    "{}: the frame is {} x {} pixels (rows x cols) but {} is {} x {}; all frames must have one size",
+                    p.display(), dim.0, dim.1, first.display(), s.0, s.1
+                ),
+                _ => {}
+            }
+            let st = stack.get_or_insert_with(|| Array3::zeros((group.len(), dim.0, dim.1)));
+            st.index_axis_mut(Axis(0), i).assign(&img);
+        }
+        let st = stack.context("no frames")?;
+        means.push(mean_frame(st.view())?);
+    }
+    // FOI eq. 4.1: the reference of level k is the array mean ⟨Y_k⟩.
+    let levels: Vec<(f64, ndarray::ArrayView2<f64>)> = means
+        .iter()
+        .map(|m| (m.mean().unwrap_or(0.0), m.view()))
+        .collect();
+    let mut coeffs =
+        NucCoefficients::fit(&levels, a.degree).context("fitting the NUC polynomials")?;
+    let cold = t
+        .iter()
+        .enumerate()
+        .min_by(|x, y| x.1.total_cmp(y.1))
+        .map_or(0, |v| v.0);
+    let warm = t
+        .iter()
+        .enumerate()
+        .max_by(|x, y| x.1.total_cmp(y.1))
+        .map_or(0, |v| v.0);
+    let det = bad_pixels::detect(
+        means[cold].view(),
+        means[warm].view(),
+        &BadPixelCriteria::default(),
+    )
+    .context("finding bad pixels from the coldest and warmest frames")?;
+    coeffs.set_bad_pixels(&det.map)?;
+    coeffs.save(&npy)?;
+    let (r, c) = coeffs.dim();
+    println!(
+        "NUC degree {} from {} temperatures x {per} frame(s), {r} x {c} px; {} bad pixel(s), {} rank-deficient; wrote {} and {}",
+        a.degree,
+        t.len(),
+        det.map.count(),
+        coeffs.rank_deficient().len(),
+        npy.with_extension("json").display(),
+        npy.display()
+    );
+    Ok(())
+}
+
+fn apply(a: ApplyArgs) -> Result<()> {
+    let npy = npy_path(&a.nuc)?;
+    let out_ext = a
+        .output
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    if !matches!(out_ext.as_str(), "tif" | "tiff" | "png") {
+        bail!(
+            "{}: the output must end in .tif/.tiff (32-bit float) or .png (16-bit)",
+            a.output.display()
+        );
+    }
+    let coeffs = NucCoefficients::load(&npy)?;
+    let img = read_dn(&a.image)?;
+    if img.dim() != coeffs.dim() {
+        bail!(
+            "{}: the image is {} x {} pixels (rows x cols) but the NUC {} is for {} x {}",
+            a.image.display(),
+            img.nrows(),
+            img.ncols(),
+            a.nuc.display(),
+            coeffs.dim().0,
+            coeffs.dim().1
+        );
+    }
+    let corrected = coeffs.apply(img.view())?;
+    let bad = coeffs.bad_pixel_map();
+    let corrected = if bad.count() > 0 {
+        bad_pixels::replace(corrected.view(), &bad)?
+    } else {
+        corrected
+    };
+    if out_ext == "png" {
+        let u = corrected.mapv(|v| v.round().clamp(0.0, u16::MAX as f64) as u16);
+        raster::write_png_u16(&a.output, u.view())?;
+    } else {
+        let f = corrected.mapv(|v| v as f32);
+        raster::write_tiff_f32(&a.output, f.view())?;
+    }
+    println!(
+        "corrected {} ({} bad pixel(s) replaced); wrote {}",
+        a.image.display(),
+        bad.count(),
+        a.output.display()
+    );
+    Ok(())
+}

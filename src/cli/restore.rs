@@ -1,0 +1,269 @@
+//! `eoir restore`: Wiener restoration of a recorded image with the sensor's own transfer
+//! function; also the single-plane image reader `eoir edge-mtf` shares.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use ndarray::Array2;
+use serde_json::json;
+
+use eoir::io::raster;
+use eoir::processing::wiener::{
+    self, replace_invalid_pixels, NoiseRule, SensorTransfer, IMPULSE_K_SIGMA,
+};
+
+use super::run::SensorArgs;
+
+/// What the pixel values of an input image are.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InputKind {
+    /// 16-bit digital numbers (PNG or TIFF).
+    Dn,
+    /// 32-bit float values (TIFF or EXR): radiance or electrons.
+    Float,
+}
+
+/// Reads a single-plane image: a 16-bit greyscale PNG or TIFF (DN), a 32-bit float
+/// greyscale TIFF, or a one-channel float OpenEXR. 8-bit, colour and multi-channel images
+/// are refused with the reason.
+pub fn read_image(path: &Path) -> Result<(Array2<f64>, InputKind)> {
+    if !path.is_file() {
+        bail!("{}: no such file", path.display());
+    }
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    match ext.as_str() {
+        "png" => {
+            let dn = raster::read_png_u16(path).with_context(|| {
+                "a PNG input must be a 16-bit greyscale image of DN (8-bit or colour images carry no calibrated DN)"
+            })?;
+            Ok((dn.mapv(f64::from), InputKind::Dn))
+        }
+        "tif" | "tiff" => match raster::read_tiff_u16(path) {
+            Ok(dn) => Ok((dn.mapv(f64::from), InputKind::Dn)),
+            Err(e16) => match raster::read_tiff_f32(path) {
+                Ok(v) => Ok((v.mapv(f64::from), InputKind::Float)),
+                Err(e32) => bail!(
+                    "{}: not a 16-bit DN TIFF ({e16}) nor a 32-bit float TIFF ({e32})",
+                    path.display()
+                ),
+            },
+        },
+        "exr" => Ok((read_exr_single(path)?, InputKind::Float)),
+        other => bail!(
+            "{}: unsupported image type `.{other}`: give a 16-bit PNG/TIFF (DN) or an f32 TIFF/EXR",
+            path.display()
+        ),
+    }
+}
+
+/// Reads a one-channel float OpenEXR image.
+fn read_exr_single(path: &Path) -> Result<Array2<f64>> {
+    use exr::prelude::{read_first_flat_layer_from_file, FlatSamples};
+    let image = read_first_flat_layer_from_file(path)
+        .map_err(|e| anyhow::anyhow!("{}: cannot read OpenEXR: {e}", path.display()))?;
+    let layer = &image.layer_data;
+    let channels = &layer.channel_data.list;
+    if channels.len() != 1 {
+        bail!(
+            "{}: expected a single-channel image, found {} channels ({})",
+            path.display(),
+            channels.len(),
+            channels
+                .iter()
+                .map(|c| c.name.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    let (w, h) = (layer.size.width(), layer.size.height());
+    let values: Vec<f64> = match &channels[0].sample_data {
+        FlatSamples::F32(v) => v.iter().map(|x| f64::from(*x)).collect(),
+        FlatSamples::F16(v) => v.iter().map(|x| f64::from(x.to_f32())).collect(),
+        FlatSamples::U32(_) => bail!(
+            "{}: the channel holds integers; expected float radiance or electrons",
+            path.display()
+        ),
+    };
+    Array2::from_shape_vec((h, w), values)
+        .with_context(|| format!("{}: image data does not fill {w} × {h}", path.display()))
+}
+
+/// Arguments of `eoir restore`.
+#[derive(Debug, clap::Args)]
+pub struct RestoreArgs {
+    /// Recorded image: 16-bit PNG/TIFF of DN, or f32 TIFF/EXR of radiance or electrons.
+    pub input: PathBuf,
+    #[command(flatten)]
+    pub sensor: SensorArgs,
+    /// Noise-to-signal ratio rule: `auto` (FOI §3.6: noise power from the frequencies the
+    /// optics do not pass) or `model` (the sensor's shot, read and quantisation noise).
+    #[arg(long, default_value = "auto", value_parser = ["auto", "model"])]
+    pub noise: String,
+    /// A constant noise-to-signal power ratio instead of `--noise`.
+    #[arg(long, conflicts_with = "noise")]
+    pub nsr: Option<f64>,
+    /// Black level of a DN image, DN (default: the sensor model's offset plus its dark
+    /// and background signal).
+    #[arg(long)]
+    pub black_level: Option<f64>,
+    /// Units of an f32 image: `electrons` or `radiance` (needed by `--noise model`).
+    #[arg(long, default_value = "electrons", value_parser = ["electrons", "radiance"])]
+    pub units: String,
+    /// Output directory (restored.tiff, restored.png, restore.json).
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+/// Mean, standard deviation, minimum and maximum.
+fn stats(a: &Array2<f64>) -> serde_json::Value {
+    let n = a.len() as f64;
+    let mean = a.sum() / n;
+    let var = a.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n;
+    let (lo, hi) = a
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+            (l.min(*v), h.max(*v))
+        });
+    json!({ "mean": mean, "std": var.sqrt(), "min": lo, "max": hi })
+}
+
+/// An 8-bit grey display image stretched between the 0.5th and 99.5th percentiles.
+pub fn display_stretch(a: &Array2<f64>) -> ndarray::Array3<u8> {
+    let mut v: Vec<f64> = a.iter().copied().filter(|x| x.is_finite()).collect();
+    v.sort_by(f64::total_cmp);
+    let pick = |q: f64| {
+        v.get(((v.len().max(1) - 1) as f64 * q).round() as usize)
+            .copied()
+            .unwrap_or(0.0)
+    };
+    let (lo, hi) = (pick(0.005), pick(0.995));
+    let span = if hi > lo { hi - lo } else { 1.0 };
+    let (rows, cols) = a.dim();
+    ndarray::Array3::from_shape_fn((rows, cols, 3), |(r, c, _)| {
+        ((a[[r, c]] - lo) / span * 255.0).round().clamp(0.0, 255.0) as u8
+    })
+}
+
+/// `eoir restore`.
+pub fn restore(args: RestoreArgs) -> Result<()> {
+    let sensor = args.sensor.load()?;
+    let (image, kind) = read_image(&args.input)?;
+    let (rows, cols) = image.dim();
+    if (rows, cols) != (sensor.detector.rows, sensor.detector.cols) {
+        bail!(
+            "{}: the image is {cols} × {rows} pixels (width × height) but sensor `{}` records {} × {}; restore an image with the sensor that recorded it",
+            args.input.display(),
+            sensor.name,
+            sensor.detector.cols,
+            sensor.detector.rows
+        );
+    }
+    let model = sensor.detector();
+    let black = match kind {
+        InputKind::Dn => {
+            let b = args.black_level.unwrap_or_else(|| model.expected_dn(0.0));
+            if !b.is_finite() || b < 0.0 {
+                bail!("--black-level {b}: expected a finite DN >= 0");
+            }
+            b
+        }
+        InputKind::Float => {
+            if args.black_level.is_some() {
+                bail!(
+                    "--black-level applies to DN images; {} holds f32 values",
+                    args.input.display()
+                );
+            }
+            0.0
+        }
+    };
+    let units = match kind {
+        InputKind::Dn => "DN",
+        InputKind::Float => args.units.as_str(),
+    };
+    let (clean, replaced) =
+        replace_invalid_pixels(image.view(), IMPULSE_K_SIGMA).context("replacing dead pixels")?;
+    let signal = clean.mapv(|v| v - black);
+    let rule = match (args.nsr, args.noise.as_str()) {
+        (Some(x), _) => NoiseRule::Constant(x),
+        (None, "model") => {
+            let mean = signal.mean().unwrap_or(0.0);
+            let variance = match kind {
+                InputKind::Dn => {
+                    let k = model.gain_dn_per_e();
+                    let mean_e = (mean / k).max(0.0);
+                    model.temporal_noise_dn(mean_e).powi(2) + model.quantisation_noise_dn().powi(2)
+                }
+                InputKind::Float if units == "electrons" => model.temporal_noise_e(mean.max(0.0)).powi(2),
+                InputKind::Float => bail!(
+                    "--noise model needs DN or electrons to know the noise level; for radiance use --noise auto or --nsr"
+                ),
+            };
+            NoiseRule::Model {
+                noise_variance: variance,
+            }
+        }
+        (None, _) => NoiseRule::Auto,
+    };
+    let transfer = SensorTransfer::new(&sensor)?;
+    let r = wiener::wiener_restore(signal.view(), &transfer, rule)?;
+    let restored = r.image.mapv(|v| v + black);
+    let mtf_nyquist_x = transfer.eval(0.5, 0.0);
+    let mtf_nyquist_y = transfer.eval(0.0, 0.5);
+    let report = json!({
+        "input": args.input.display().to_string(),
+        "sensor": sensor.name,
+        "options": sensor.selected_options,
+        "units": units,
+        "black_level_dn": if kind == InputKind::Dn { Some(black) } else { None },
+        "pixels_replaced": replaced,
+        "noise_rule": r.rule,
+        "nsr": match rule { NoiseRule::Constant(x) => json!(x), _ => json!(null) },
+        "nsr_median": r.nsr_median,
+        "noise_power": r.noise_power,
+        "noise_sigma": r.noise_sigma,
+        "noise_bins": r.noise_bins.map(|(n, negligible)| json!({"count": n, "negligible_h": negligible})),
+        "object_spectrum_exponent": r.spectrum_exponent,
+        "transfer_function": {
+            "mtf_at_nyquist_x": mtf_nyquist_x,
+            "mtf_at_nyquist_y": mtf_nyquist_y,
+            "spectral_weighting_temperature_k": transfer.reference_temperature_k(),
+            "components": sensor.otf().components().iter().map(|c| c.name()).collect::<Vec<_>>(),
+        },
+        "padded_shape": [r.padded_shape.0, r.padded_shape.1],
+        "input_stats": stats(&image),
+        "output_stats": stats(&restored),
+    });
+    // Everything is computed: only now touch the output directory.
+    std::fs::create_dir_all(&args.output)
+        .with_context(|| format!("creating {}", args.output.display()))?;
+    let tiff = args.output.join("restored.tiff");
+    raster::write_tiff_f32(&tiff, restored.mapv(|v| v as f32).view())?;
+    let png = args.output.join("restored.png");
+    raster::write_png_rgb8(&png, display_stretch(&restored).view())?;
+    let json_path = args.output.join("restore.json");
+    let text = serde_json::to_string_pretty(&report)?;
+    eoir::io::atomic_write(&json_path, |w| {
+        eoir::io::write_all(w, text.as_bytes(), &json_path)
+    })?;
+    println!(
+        "{}: Wiener ({}{}), MTF at Nyquist {:.3} (x) {:.3} (y), {} pixels replaced",
+        sensor.name,
+        r.rule,
+        match (rule, r.noise_sigma) {
+            (NoiseRule::Constant(x), _) => format!(" NSR {x}"),
+            (_, Some(s)) => format!(", noise {s:.4} {units} rms"),
+            _ => String::new(),
+        },
+        mtf_nyquist_x,
+        mtf_nyquist_y,
+        replaced
+    );
+    for p in [tiff, png, json_path] {
+        println!("wrote {}", p.display());
+    }
+    Ok(())
+}

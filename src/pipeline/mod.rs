@@ -1,0 +1,311 @@
+//! The chain, stage by stage: input cube → mean electrons on the detector → DN → products.
+//!
+//! ```text
+//! image      image::ImagingStage           spectral weights, transfer functions, sampling;
+//!                                          CFA sensors: one image per colour, mosaicked
+//! expose     expose::Exposure              dark, shot noise, full well, FPN, nonlinearity,
+//!                                          read noise, K, ADC, defects
+//! demosaic   colour::colour_image          CFA sensors: black level, Malvar, white balance
+//! calibrate  calibrate::calibrate_frames   thermal sensors: NUC, bad pixels, DN → radiance
+//!                                          → apparent temperature
+//! report     report::RunReport::assemble   figures of merit, provenance, timings
+//! write      RunOutput::write              dn.tiff/png, electrons_mean, radiance, temperature,
+//!                                          rgb.png, config.toml, report.json
+//! ```
+//!
+//! Every stage takes the resolved [`Sensor`]: nothing here reads a sensor file or
+//! re-validates.
+
+pub mod calibrate;
+pub mod colour;
+pub mod expose;
+pub mod image;
+mod output;
+pub mod report_html;
+
+use std::time::Instant;
+
+use ndarray::Array2;
+
+use crate::calibration::CalibrationOptions;
+use crate::error::{Error, Result};
+use crate::imaging::DEFAULT_WRAP_TOLERANCE;
+use crate::io::CubeReader;
+use crate::report::{RunFacts, RunReport};
+use crate::scene::{CubeMeta, Geometry};
+use crate::sensor::Sensor;
+
+use expose::Exposure;
+use image::ImagingStage;
+
+/// Options of one run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunOptions {
+    /// Seed for every random effect (noise, fixed pattern, defects).
+    pub seed: u64,
+    /// Field of view to use when the input does not carry one (or to override it).
+    pub geometry: Option<Geometry>,
+    /// Wrap-around tolerance that sets the FFT padding (see [`crate::imaging::pad_width`]).
+    pub wrap_tolerance: f64,
+    /// Where the input came from (for the report).
+    pub input_name: String,
+    /// Number of frames to expose of a single-frame (static) input: the mean image is
+    /// formed once and exposed `frames` times (fixed pattern identical, temporal noise
+    /// independent). Ignored for a multi-frame input.
+    pub frames: usize,
+    /// Radiometric calibration for thermal sensors (response beyond 3 µm): NUC fitted on
+    /// blackbody frames through the same sensor instance, then DN → in-band radiance →
+    /// apparent temperature. `None` skips it.
+    pub calibration: Option<CalibrationOptions>,
+    /// Index, within the whole sequence, of this run's first frame: frame `i` of the run
+    /// draws the temporal noise of sequence frame `first_frame + i` (the fixed pattern does
+    /// not depend on it). A sequence cut into pieces (e.g. chunks on several machines) and
+    /// run piece by piece with the right `first_frame` gives the same DN as one run.
+    pub first_frame: u64,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        RunOptions {
+            seed: 1,
+            geometry: None,
+            wrap_tolerance: DEFAULT_WRAP_TOLERANCE,
+            input_name: String::from("memory"),
+            frames: 1,
+            calibration: Some(CalibrationOptions::default()),
+            first_frame: 0,
+        }
+    }
+}
+
+/// The products of one frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameProducts {
+    /// Noise-free expected photo-electrons per pixel (the ground truth).
+    pub electrons_mean: Array2<f32>,
+    /// Digital numbers (for a colour-filter-array sensor: the raw mosaic).
+    pub dn: Array2<u16>,
+    /// For a colour-filter-array sensor: the demosaicked (Malvar–He–Cutler), black-level
+    /// subtracted, sunlight white-balanced colour image, `[row, col, 3]`, with the 99.5th
+    /// percentile at 255 (one scale, so grey stays grey).
+    pub rgb: Option<ndarray::Array3<u8>>,
+    /// Thermal sensors: in-band radiance (W m-2 sr-1, response-weighted, normalised to peak
+    /// response 1) after NUC and bad-pixel replacement; NaN where it cannot be inverted.
+    pub radiance: Option<Array2<f32>>,
+    /// Thermal sensors: apparent (blackbody-equivalent) temperature, K; NaN outside the
+    /// calibrated range.
+    pub temperature: Option<Array2<f32>>,
+}
+
+/// Everything a run produced.
+#[derive(Debug, Clone)]
+pub struct RunOutput {
+    /// One entry per frame.
+    pub frames: Vec<FrameProducts>,
+    /// The sensor configuration as resolved (written as `config.toml`).
+    pub sensor: Sensor,
+    /// Figures of merit, input summary and timings (written as `report.json`).
+    pub report: RunReport,
+    /// Warnings collected on the way.
+    pub warnings: Vec<String>,
+}
+
+/// A false-colour composite of runs of the channels of one camera (3-CCD, three-band): the
+/// channels are ordered by their response-weighted mean wavelength and the longest goes to
+/// red, the middle to green, the shortest to blue (so near-IR-bright vegetation is red, as
+/// in a colour-infrared photograph). Each channel's DN image is stretched between
+/// its own 0.5 and 99.5 percentiles. Returns `[row, col, 3]` bytes.
+pub fn false_colour_composite(channels: &[(f64, &RunOutput)]) -> Result<ndarray::Array3<u8>> {
+    if channels.len() != 3 {
+        return Err(Error::param(
+            "composite channels",
+            channels.len(),
+            "exactly 3 channel runs",
+        ));
+    }
+    let mut order: Vec<&(f64, &RunOutput)> = channels.iter().collect();
+    order.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let planes: Vec<Array2<f64>> = order
+        .iter()
+        .map(|(_, out)| out.frames[0].dn.mapv(|v| v as f64))
+        .collect();
+    crate::cfa::false_colour([planes[0].view(), planes[1].view(), planes[2].view()], 0.5)
+}
+
+/// Whether the sensor sees thermal emission (its response reaches beyond 3 µm), so that
+/// apparent temperature is a meaningful product.
+pub fn is_thermal(sensor: &Sensor) -> bool {
+    sensor.is_thermal()
+}
+
+/// The scene's field of view: the options' override, else the input's own.
+fn input_geometry(options: &RunOptions, meta: &CubeMeta) -> Result<Geometry> {
+    let geometry = options.geometry.or(meta.geometry).ok_or_else(|| {
+        Error::param(
+            "input field of view",
+            "missing",
+            "a field of view: pass --fov-deg H,V, or put `eoir fov deg = {H, V}` in the ENVI header / `fov_deg` in the NPY sidecar",
+        )
+    })?;
+    // A geometry given in code or on the command line gets the same checks as a file's.
+    CubeMeta {
+        geometry: Some(geometry),
+        ..meta.clone()
+    }
+    .validate("the run's geometry (--fov-deg / RunOptions::geometry)")?;
+    Ok(geometry)
+}
+
+/// Checks the run's largest allocations (padded FFT planes, scene and detector frames,
+/// the frames kept) against the memory budget before any is made.
+fn check_budget(
+    imaging: &ImagingStage,
+    meta: &CubeMeta,
+    sensor: &Sensor,
+    frames: usize,
+) -> Result<()> {
+    let s = imaging.sampling();
+    let d = &sensor.config().detector;
+    crate::limits::check_run(
+        (s.y.padded_len, s.x.padded_len),
+        (meta.rows, meta.cols),
+        (d.rows, d.cols),
+        frames,
+    )
+    .map(|_| ())
+}
+
+/// The mean electrons of frame `f`, refused when a count is not finite or beyond the f32
+/// range of the products (it would be written as inf).
+fn finite_mean<'a>(
+    mean: &'a Option<Array2<f64>>,
+    f: usize,
+    input_name: &str,
+) -> Result<&'a Array2<f64>> {
+    let e = mean
+        .as_ref()
+        .ok_or_else(|| Error::OutOfRange("no frame imaged".into()))?;
+    if let Some(v) = e
+        .iter()
+        .find(|v| !(v.is_finite() && v.abs() <= f32::MAX as f64))
+    {
+        return Err(Error::OutOfRange(format!(
+            "frame {f} of `{input_name}`: the mean signal overflowed ({v:e} electrons, beyond the f32 range of the products); the input radiance or the sensor's spectral response (detector.quantum_efficiency, transmissions, integration time, pixel area) is too large to give a finite count"
+        )));
+    }
+    Ok(e)
+}
+
+/// Adds the warnings that appear only while running: the reader's (e.g. `data ignore
+/// value` pixels counted band by band) and the exposure model's (a scene-mean auto gain
+/// warns only once the scene is known).
+fn add_late_warnings(reader: &dyn CubeReader, model: &[String], warnings: &mut Vec<String>) {
+    for w in reader.warnings().into_iter().chain(model.iter().cloned()) {
+        if !warnings.contains(&w) {
+            warnings.push(w);
+        }
+    }
+}
+
+/// Frames a run produces: every frame of a sequence, or `requested` (at least 1) exposures
+/// of a static (single-frame) input.
+fn frame_count(input_frames: usize, requested: usize) -> usize {
+    if input_frames == 1 {
+        requested.max(1)
+    } else {
+        input_frames
+    }
+}
+
+impl FrameProducts {
+    /// A frame before calibration: mean electrons, DN and (CFA sensors) the colour image.
+    fn raw(
+        electrons_mean: &Array2<f64>,
+        dn: Array2<u16>,
+        rgb: Option<ndarray::Array3<u8>>,
+    ) -> Self {
+        FrameProducts {
+            electrons_mean: electrons_mean.mapv(|v| v as f32),
+            dn,
+            rgb,
+            radiance: None,
+            temperature: None,
+        }
+    }
+}
+
+/// Runs the chain on every frame of `reader` (a static input is imaged once and exposed
+/// `options.frames` times). Nothing is written: call [`RunOutput::write`].
+/// `progress(done, total)` is called after each band of each frame.
+pub fn run(
+    sensor: &Sensor,
+    reader: &mut dyn CubeReader,
+    options: &RunOptions,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<RunOutput> {
+    let t_start = Instant::now();
+    let meta = reader.meta().clone();
+    let geometry = input_geometry(options, &meta)?;
+    let mut warnings = reader.warnings();
+    warnings.extend(sensor.warnings().iter().cloned());
+    let mut imaging = ImagingStage::new(sensor, &meta, &geometry, options.wrap_tolerance)?;
+    warnings.extend(imaging.sampling().warnings.iter().cloned());
+    warnings.extend(sensor.detector().warnings().iter().cloned());
+    let (input_frames, active) = (reader.frames(), imaging.bands_used());
+    let n_frames = frame_count(input_frames, options.frames);
+    check_budget(&imaging, &meta, sensor, n_frames)?;
+    let (mut frames, mut detector_s) = (Vec::with_capacity(n_frames), 0.0);
+    let mut mean: Option<Array2<f64>> = None;
+    let mut exposure: Option<Exposure> = None;
+    for f in 0..n_frames {
+        if mean.is_none() || input_frames != 1 {
+            let total = input_frames * active;
+            let e = imaging.mean_electrons(reader, f, |b| progress(f * active + b, total))?;
+            mean = Some(e);
+        }
+        let e = finite_mean(&mean, f, &options.input_name)?;
+        let exposure = match &mut exposure {
+            Some(x) => x,
+            None => exposure.insert(Exposure::new(sensor, e, options.seed)?),
+        };
+        let t0 = Instant::now();
+        let dn = exposure.expose(e, options.first_frame + f as u64)?;
+        detector_s += t0.elapsed().as_secs_f64();
+        let rgb = colour::colour_image(sensor, exposure.model(), &dn);
+        frames.push(FrameProducts::raw(e, dn, rgb));
+    }
+    let exposure = exposure.ok_or_else(|| Error::OutOfRange("no frame was exposed".into()))?;
+    add_late_warnings(reader, exposure.model().warnings(), &mut warnings);
+    let t_cal = Instant::now();
+    let calibration = options.calibration.as_ref();
+    let outcome = calibrate::calibrate_frames(sensor, &exposure, calibration, &mut frames)?;
+    let calibration = outcome.into_report(&mut warnings);
+    let calibration_s = t_cal.elapsed().as_secs_f64();
+    let mut report = RunReport::assemble(RunFacts {
+        sensor,
+        model: exposure.model(),
+        seed: options.seed,
+        input_name: &options.input_name,
+        meta: &meta,
+        geometry: &geometry,
+        frames: n_frames,
+        bands_used: active,
+        sampling: imaging.sampling(),
+        imaging: imaging.stats(),
+        wrap_tolerance: options.wrap_tolerance,
+        first_electrons: &frames[0].electrons_mean,
+        first_dn: &frames[0].dn,
+        calibration,
+        warnings: warnings.clone(),
+        detector_s,
+        calibration_s,
+        total_s: t_start.elapsed().as_secs_f64(),
+    });
+    report.input.units_source = reader.units_source();
+    Ok(RunOutput {
+        frames,
+        sensor: sensor.clone(),
+        report,
+        warnings,
+    })
+}

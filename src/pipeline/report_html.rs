@@ -1,0 +1,655 @@
+//! The pictures of a run and `report.html`: one self-contained page (images inline as
+//! base64 PNG data URIs, no scripts, no external resources) that a person opens in any
+//! browser to see what the sensor did — sensor, options, optics, sampling, noise, SNR, NETD,
+//! saturation, warnings, the DN and temperature pictures, the MTF curves and the DN
+//! histogram. The numbers are taken from the run's report (the same values as
+//! `report.json`).
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use serde_json::Value;
+
+use super::RunOutput;
+use crate::display::{self, Stretch};
+use crate::error::{Error, Result};
+use crate::plot::{self, HistogramPlot, Marker};
+use crate::report::MtfCurves;
+
+/// Bins of the DN histogram.
+pub const HISTOGRAM_BINS: usize = 200;
+/// Percentiles (%) bounding the DN histogram's axis (then widened by 5 % of the span each
+/// side), so a few dead or hot pixels do not squeeze the distribution into one bar.
+pub const HISTOGRAM_RANGE_PERCENT: (f64, f64) = (0.1, 99.9);
+
+/// A picture as PNG bytes with the file name it is written under.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Picture {
+    /// File name in the output directory, e.g. `dn.png`.
+    pub file_name: &'static str,
+    /// PNG bytes.
+    pub png: Vec<u8>,
+    /// One-line caption: what is shown and how it is scaled.
+    pub caption: String,
+}
+
+/// The pictures of the first frame of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunPictures {
+    /// `dn.png`: 8-bit display of the DN with the stretch of
+    /// [`display::dn_display`].
+    pub dn: Picture,
+    /// The stretch of `dn.png`, DN.
+    pub dn_stretch: Stretch,
+    /// `temperature.png` (thermal sensors with temperature products): inferno colour map
+    /// and a colour bar in K.
+    pub temperature: Option<Picture>,
+    /// `dn_histogram.png`.
+    pub histogram: Picture,
+    /// `mtf.png`: the transfer functions at the response-weighted mean wavelength (absent
+    /// when the sensor's band is unbounded).
+    pub mtf: Option<Picture>,
+}
+
+impl RunPictures {
+    /// Draws the pictures of frame 0 of `out`.
+    pub fn render(out: &RunOutput) -> Result<RunPictures> {
+        let frame = out
+            .frames
+            .first()
+            .ok_or_else(|| Error::param("run output", "no frames", "at least one exposed frame"))?;
+        let (grey, dn_stretch) = display::dn_display(frame.dn.view());
+        let (rows, cols) = grey.dim();
+        let samples: Vec<u8> = grey.iter().copied().collect();
+        let dn = Picture {
+            file_name: "dn.png",
+            png: display::encode_png(cols, rows, 1, &samples)?,
+            caption: format!(
+                "DN, linear display stretch: {:.0} DN black to {:.0} DN white (the {} and {} percentiles); raw DN in dn.tiff",
+                dn_stretch.lo,
+                dn_stretch.hi,
+                display::DN_STRETCH_LO_PERCENT,
+                display::DN_STRETCH_HI_PERCENT
+            ),
+        };
+        let temperature = match &frame.temperature {
+            Some(t) if t.iter().any(|v| v.is_finite()) => {
+                let (pic, s) = display::colour_picture(t.view(), "K")?;
+                let (h, w, _) = pic.dim();
+                let samples: Vec<u8> = pic.iter().copied().collect();
+                let (lo_p, hi_p) = display::TEMPERATURE_STRETCH_PERCENT;
+                Some(Picture {
+                    file_name: "temperature.png",
+                    png: display::encode_png(w, h, 3, &samples)?,
+                    caption: format!(
+                        "apparent temperature, inferno colour map from {:.2} K to {:.2} K (the {lo_p} and {hi_p} percentiles); values in temperature.tiff",
+                        s.lo, s.hi
+                    ),
+                })
+            }
+            _ => None,
+        };
+        let histogram = dn_histogram(out, &dn_stretch)?;
+        let sensor = &out.sensor;
+        let mtf = match crate::report::mean_wavelength_um(sensor) {
+            Ok(l) => {
+                let curves = MtfCurves::compute(sensor, l, None, 300)?;
+                Some(Picture {
+                    file_name: "mtf.png",
+                    png: curves.render_png(&out.sensor.name)?,
+                    caption: format!(
+                        "transfer functions along x at the response-weighted mean wavelength {l:.3} µm; system MTF at Nyquist {:.3}",
+                        curves.system_at_nyquist
+                    ),
+                })
+            }
+            Err(_) => None,
+        };
+        Ok(RunPictures {
+            dn,
+            dn_stretch,
+            temperature,
+            histogram,
+            mtf,
+        })
+    }
+
+    /// The pictures in page order.
+    pub fn all(&self) -> Vec<&Picture> {
+        let mut v = vec![&self.dn];
+        v.extend(self.temperature.as_ref());
+        v.push(&self.histogram);
+        v.extend(self.mtf.as_ref());
+        v
+    }
+
+    /// Writes the pictures other than `dn.png` (which [`RunOutput::write`] writes for every
+    /// frame) into `dir`, atomically. Returns the paths written.
+    pub fn write(&self, dir: &Path) -> Result<Vec<PathBuf>> {
+        let mut written = Vec::new();
+        for p in self.all().into_iter().skip(1) {
+            let path = dir.join(p.file_name);
+            display::write_png_bytes(&path, &p.png)?;
+            written.push(path);
+        }
+        Ok(written)
+    }
+}
+
+/// The DN histogram of frame 0, with the display stretch and full scale marked.
+fn dn_histogram(out: &RunOutput, stretch: &Stretch) -> Result<Picture> {
+    let dn = &out.frames[0].dn;
+    let mut sorted: Vec<f64> = dn.iter().map(|v| *v as f64).collect();
+    sorted.sort_by(f64::total_cmp);
+    let (lo_p, hi_p) = HISTOGRAM_RANGE_PERCENT;
+    let p_lo = display::percentile_sorted(&sorted, lo_p);
+    let p_hi = display::percentile_sorted(&sorted, hi_p);
+    let pad = 0.05 * (p_hi - p_lo).max(10.0);
+    let full_scale = out.sensor.detector.max_dn();
+    let lo = (p_lo - pad).max(0.0).floor();
+    let hi = (p_hi + pad).min(full_scale).ceil();
+    let (edges, counts) = plot::histogram(sorted.iter().copied(), lo, hi, HISTOGRAM_BINS);
+    let shown: u64 = counts.iter().sum();
+    let mut markers = vec![
+        Marker {
+            label: "black",
+            x: stretch.lo,
+        },
+        Marker {
+            label: "white",
+            x: stretch.hi,
+        },
+    ];
+    if full_scale <= hi {
+        markers.push(Marker {
+            label: "full scale",
+            x: full_scale,
+        });
+    }
+    let title = format!("DN histogram ({shown} of {} pixels in range)", sorted.len());
+    let png = plot::render_histogram(&HistogramPlot {
+        title: &title,
+        x_label: "DN",
+        edges: &edges,
+        counts: &counts,
+        markers,
+        size_px: (900, 450),
+    })?;
+    Ok(Picture {
+        file_name: "dn_histogram.png",
+        png,
+        caption: format!(
+            "DN of frame 0 in {HISTOGRAM_BINS} bins from {lo:.0} to {hi:.0} DN ({lo_p}–{hi_p} percentiles widened by 5 %); red lines: display black/white levels{}",
+            if full_scale <= hi { " and ADC full scale" } else { "" }
+        ),
+    })
+}
+
+/// Standard base64 (RFC 4648 §4, with `=` padding) of `bytes`.
+pub fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            chunk.get(1).copied().unwrap_or(0),
+            chunk.get(2).copied().unwrap_or(0),
+        ];
+        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        for i in 0..4 {
+            if i <= chunk.len() {
+                out.push(ALPHABET[((n >> (18 - 6 * i)) & 63) as usize] as char);
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
+/// `text` with the five HTML-special characters escaped.
+pub fn escape_html(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&#39;"),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// A number for the page: `digits` significant figures in plain or scientific notation;
+/// `—` when absent or not finite.
+fn num(v: Option<f64>, digits: usize) -> String {
+    match v {
+        Some(0.0) => "0".to_string(),
+        Some(x) if x.is_finite() => {
+            let a = x.abs();
+            if a != 0.0 && !(1e-3..1e6).contains(&a) {
+                format!("{:.*e}", digits.saturating_sub(1), x)
+            } else {
+                let int_digits = if a >= 1.0 {
+                    a.log10().floor() as usize + 1
+                } else {
+                    1
+                };
+                let decimals = digits.saturating_sub(int_digits).max(if a < 1.0 {
+                    digits + (-(a.max(1e-300)).log10()).floor() as usize
+                } else {
+                    0
+                });
+                format!("{x:.decimals$}")
+            }
+        }
+        _ => "—".to_string(),
+    }
+}
+
+/// One table row; `id`, when given, names the value cell for scripts and tests.
+fn row(html: &mut String, label: &str, value: &str, id: Option<&str>) {
+    let id = id.map(|i| format!(" id=\"{i}\"")).unwrap_or_default();
+    let _ = writeln!(
+        html,
+        "<tr><th>{}</th><td{id}>{value}</td></tr>",
+        escape_html(label)
+    );
+}
+
+/// The page for `out` with `pictures` inline.
+pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
+    let r: Value = serde_json::to_value(&out.report)
+        .map_err(|e| Error::param("run report", e.to_string(), "a serialisable report"))?;
+    let f = |ptr: &str| r.pointer(ptr).and_then(Value::as_f64);
+    let s = |ptr: &str| {
+        r.pointer(ptr)
+            .map(|v| match v {
+                Value::String(t) => t.clone(),
+                Value::Null => "—".to_string(),
+                other => other.to_string(),
+            })
+            .unwrap_or_else(|| "—".to_string())
+    };
+    let sensor = &out.sensor;
+    let options = r
+        .pointer("/options")
+        .and_then(Value::as_object)
+        .map(|o| {
+            o.iter()
+                .map(|(k, v)| format!("{k}={}", v.as_str().unwrap_or("")))
+                .collect::<Vec<_>>()
+                .join(", ")
+        })
+        .filter(|t| !t.is_empty())
+        .unwrap_or_else(|| "none".to_string());
+    let mut h = String::new();
+    let title = format!("eoir run: {}", sensor.name);
+    let _ = writeln!(
+        h,
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>{}</title>\n<style>{STYLE}</style>\n</head>\n<body>",
+        escape_html(&title)
+    );
+    let _ = writeln!(
+        h,
+        "<header><h1>{}</h1><p>{}</p><p class=\"meta\">options: {} · seed {} · input {} · eoir {}</p></header>",
+        escape_html(&sensor.name),
+        escape_html(&sensor.description),
+        escape_html(&options),
+        escape_html(&s("/seed")),
+        escape_html(&s("/input/name")),
+        escape_html(&s("/eoir_version")),
+    );
+    let warnings: Vec<String> = r
+        .pointer("/warnings")
+        .and_then(Value::as_array)
+        .map(|a| {
+            a.iter()
+                .filter_map(|w| w.as_str().map(str::to_string))
+                .collect()
+        })
+        .unwrap_or_default();
+    if warnings.is_empty() {
+        h.push_str(
+            "<section class=\"ok\" id=\"warnings\"><h2>Warnings</h2><p>none</p></section>\n",
+        );
+    } else {
+        h.push_str("<section class=\"warn\" id=\"warnings\"><h2>Warnings</h2><ul>\n");
+        for w in &warnings {
+            let _ = writeln!(h, "<li>{}</li>", escape_html(w));
+        }
+        h.push_str("</ul></section>\n");
+    }
+    // Key figures.
+    let netd_mk = f("/calibration/netd_analytic_k_at_300k").map(|k| k * 1e3);
+    let netd_meas_mk = f("/calibration/netd_measured_k_at_300k").map(|k| k * 1e3);
+    h.push_str("<section class=\"cards\">\n");
+    let card = |h: &mut String, label: &str, value: String, unit: &str, id: &str| {
+        let _ = writeln!(
+            h,
+            "<div class=\"card\"><div class=\"label\">{label}</div><div class=\"value\"><span id=\"{id}\">{value}</span> <small>{unit}</small></div></div>"
+        );
+    };
+    card(
+        &mut h,
+        "SNR (mean signal)",
+        num(f("/signal/snr"), 4),
+        "",
+        "snr",
+    );
+    if netd_mk.is_some() {
+        card(&mut h, "NETD at 300 K", num(netd_mk, 3), "mK", "netd_mk");
+    }
+    card(
+        &mut h,
+        "MTF at Nyquist",
+        num(f("/optics/mtf_at_nyquist"), 3),
+        "",
+        "mtf_nyquist",
+    );
+    card(
+        &mut h,
+        "saturated",
+        num(f("/signal/saturated_percent"), 3),
+        "%",
+        "saturated_percent",
+    );
+    h.push_str("</section>\n<div class=\"grid\">\n");
+
+    h.push_str("<section><h2>Optics</h2><table>\n");
+    row(
+        &mut h,
+        "focal length",
+        &format!(
+            "{} mm",
+            num(f("/optics/focal_length_m").map(|m| m * 1e3), 4)
+        ),
+        Some("focal_length_mm"),
+    );
+    row(
+        &mut h,
+        "F-number",
+        &num(f("/optics/f_number"), 3),
+        Some("f_number"),
+    );
+    row(
+        &mut h,
+        "IFOV",
+        &format!("{} µrad", num(f("/optics/ifov_urad"), 4)),
+        Some("ifov_urad"),
+    );
+    let fov = r.pointer("/optics/fov_deg").and_then(Value::as_array);
+    let fov_text = fov
+        .map(|a| {
+            format!(
+                "{} × {} °",
+                num(a.first().and_then(Value::as_f64), 4),
+                num(a.get(1).and_then(Value::as_f64), 4)
+            )
+        })
+        .unwrap_or_else(|| "—".into());
+    row(&mut h, "field of view", &fov_text, None);
+    row(
+        &mut h,
+        "mean wavelength",
+        &format!("{} µm", num(f("/optics/mean_wavelength_um"), 4)),
+        None,
+    );
+    row(
+        &mut h,
+        "λF#/pitch",
+        &num(f("/optics/lambda_f_number_over_pitch"), 3),
+        Some("lambda_f_number_over_pitch"),
+    );
+    row(
+        &mut h,
+        "MTF components",
+        &escape_html(&s("/optics/components")),
+        None,
+    );
+    h.push_str("</table></section>\n");
+
+    h.push_str("<section><h2>Sampling</h2><table>\n");
+    row(
+        &mut h,
+        "input",
+        &format!(
+            "{} × {} px, {} bands ({} used), {} frame(s)",
+            s("/input/cols"),
+            s("/input/rows"),
+            s("/input/bands"),
+            s("/input/bands_used"),
+            s("/input/frames")
+        ),
+        None,
+    );
+    row(
+        &mut h,
+        "input units",
+        &escape_html(&s("/input/units")),
+        None,
+    );
+    row(
+        &mut h,
+        "scene/detector sampling",
+        &format!(
+            "{} × {}",
+            num(f("/sampling/ratio_x"), 6),
+            num(f("/sampling/ratio_y"), 6)
+        ),
+        Some("sampling_ratio"),
+    );
+    row(&mut h, "method", &escape_html(&s("/sampling/method")), None);
+    row(
+        &mut h,
+        "detector",
+        &format!(
+            "{} × {} px, {} bit",
+            s("/detector/cols"),
+            s("/detector/rows"),
+            s("/detector/bits")
+        ),
+        None,
+    );
+    h.push_str("</table></section>\n");
+
+    h.push_str("<section><h2>Detector and noise</h2><table>\n");
+    row(
+        &mut h,
+        "conversion gain K",
+        &format!("{} DN/e⁻", num(f("/detector/gain_dn_per_e"), 4)),
+        Some("gain_dn_per_e"),
+    );
+    row(
+        &mut h,
+        "auto-gain reference",
+        &escape_html(&s("/detector/auto_gain_reference")),
+        None,
+    );
+    row(
+        &mut h,
+        "full well",
+        &format!("{} e⁻", num(f("/detector/full_well_e"), 4)),
+        None,
+    );
+    row(
+        &mut h,
+        "dark signal",
+        &format!("{} e⁻", num(f("/detector/dark_e"), 4)),
+        None,
+    );
+    row(
+        &mut h,
+        "read noise",
+        &format!("{} e⁻", num(f("/detector/read_noise_e"), 4)),
+        None,
+    );
+    row(
+        &mut h,
+        "mean signal",
+        &format!(
+            "{} e⁻ ({} DN)",
+            num(f("/signal/mean_electrons"), 5),
+            num(f("/signal/mean_dn"), 5)
+        ),
+        Some("mean_electrons"),
+    );
+    row(
+        &mut h,
+        "temporal noise",
+        &format!("{} e⁻", num(f("/signal/temporal_noise_e"), 4)),
+        Some("temporal_noise_e"),
+    );
+    row(&mut h, "SNR", &num(f("/signal/snr"), 4), None);
+    row(
+        &mut h,
+        "saturated pixels",
+        &format!("{} %", num(f("/signal/saturated_percent"), 3)),
+        None,
+    );
+    h.push_str("</table></section>\n");
+
+    if r.pointer("/calibration").is_some_and(|c| !c.is_null()) {
+        h.push_str("<section><h2>Calibration</h2><table>\n");
+        row(
+            &mut h,
+            "NUC degree",
+            &escape_html(&s("/calibration/nuc_degree")),
+            None,
+        );
+        row(
+            &mut h,
+            "blackbody levels",
+            &format!("{} K", escape_html(&s("/calibration/temperatures_k"))),
+            None,
+        );
+        row(
+            &mut h,
+            "NETD at 300 K (analytic)",
+            &format!("{} mK", num(netd_mk, 4)),
+            None,
+        );
+        row(
+            &mut h,
+            "NETD at 300 K (measured)",
+            &format!("{} mK", num(netd_meas_mk, 4)),
+            Some("netd_measured_mk"),
+        );
+        row(
+            &mut h,
+            "bad pixels",
+            &escape_html(&s("/calibration/bad_pixels")),
+            None,
+        );
+        let nu =
+            |k: &str| f(&format!("/calibration/residual_nonuniformity/{k}")).map(|v| v * 100.0);
+        row(
+            &mut h,
+            "non-uniformity σ/μ (flat field)",
+            &format!(
+                "raw {} %, after NUC {} %, temporal floor {} %",
+                num(nu("raw"), 3),
+                num(nu("corrected"), 3),
+                num(nu("temporal_floor"), 3)
+            ),
+            None,
+        );
+        row(
+            &mut h,
+            "pixels without temperature",
+            &escape_html(&s("/calibration/uninvertible_pixels")),
+            None,
+        );
+        h.push_str("</table></section>\n");
+    }
+    h.push_str("</div>\n");
+
+    for p in pictures.all() {
+        let _ = writeln!(
+            h,
+            "<figure id=\"fig-{}\"><img alt=\"{}\" src=\"data:image/png;base64,{}\"><figcaption><b>{}</b>: {}</figcaption></figure>",
+            p.file_name.trim_end_matches(".png"),
+            p.file_name,
+            base64(&p.png),
+            p.file_name,
+            escape_html(&p.caption)
+        );
+    }
+    let timing = f("/timings_s/total");
+    let _ = writeln!(
+        h,
+        "<footer>run time {} s · products: dn.tiff (raw DN), electrons_mean.tiff/.exr, config.toml, report.json</footer>\n</body>\n</html>",
+        num(timing, 3)
+    );
+    Ok(h)
+}
+
+/// Writes the pictures and `report.html` into `dir`. Returns the paths written.
+pub fn write(out: &RunOutput, dir: &Path) -> Result<Vec<PathBuf>> {
+    let pictures = RunPictures::render(out)?;
+    let mut written = pictures.write(dir)?;
+    let page = render_page(out, &pictures)?;
+    let p = dir.join("report.html");
+    crate::io::atomic_write(&p, |w| crate::io::write_all(w, page.as_bytes(), &p))?;
+    written.push(p);
+    Ok(written)
+}
+
+const STYLE: &str = "body{font-family:-apple-system,'Segoe UI',Roboto,'DejaVu Sans',sans-serif;margin:0 auto;max-width:1150px;padding:16px 24px;color:#1d2330;background:#f6f7f9}\
+header{border-bottom:3px solid #3b4a6b;margin-bottom:12px}h1{margin:8px 0 2px;font-size:28px}\
+header p{margin:4px 0;color:#444}.meta{font-size:13px;color:#667}\
+h2{font-size:17px;margin:0 0 8px;color:#3b4a6b}\
+section{background:#fff;border-radius:8px;padding:12px 16px;margin:10px 0;box-shadow:0 1px 3px rgba(0,0,0,.12)}\
+.warn{border-left:6px solid #d98c00;background:#fff8e6}.ok{border-left:6px solid #3a9a4a}\
+.warn li{margin:4px 0}\
+.cards{display:flex;gap:12px;background:none;box-shadow:none;padding:0}\
+.card{flex:1;background:#fff;border-radius:8px;padding:10px 14px;box-shadow:0 1px 3px rgba(0,0,0,.12)}\
+.card .label{font-size:13px;color:#667}.card .value{font-size:26px;font-weight:600}\
+.grid{display:grid;grid-template-columns:1fr 1fr;gap:0 16px}\
+table{border-collapse:collapse;width:100%;font-size:14px}th{text-align:left;font-weight:normal;color:#556;padding:3px 8px 3px 0;width:45%}\
+td{padding:3px 0;font-variant-numeric:tabular-nums}tr+tr{border-top:1px solid #eef}\
+figure{background:#fff;border-radius:8px;padding:12px;margin:12px 0;box-shadow:0 1px 3px rgba(0,0,0,.12)}\
+figure img{max-width:100%;image-rendering:pixelated;display:block;margin:0 auto}\
+figcaption{font-size:13px;color:#445;margin-top:6px}footer{font-size:12px;color:#778;margin:16px 0}";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn base64_matches_rfc4648_vectors() {
+        // RFC 4648 §10 test vectors.
+        for (input, expected) in [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foob", "Zm9vYg=="),
+            ("fooba", "Zm9vYmE="),
+            ("foobar", "Zm9vYmFy"),
+        ] {
+            assert_eq!(base64(input.as_bytes()), expected, "{input}");
+        }
+    }
+
+    #[test]
+    fn html_is_escaped() {
+        assert_eq!(
+            escape_html("<a href=\"x\">&'"),
+            "&lt;a href=&quot;x&quot;&gt;&amp;&#39;"
+        );
+    }
+
+    #[test]
+    fn numbers_keep_significant_digits() {
+        assert_eq!(num(Some(16.76), 3), "16.8");
+        assert_eq!(num(Some(1634.8), 4), "1635");
+        assert_eq!(num(Some(0.0536), 3), "0.0536");
+        assert_eq!(num(Some(2.9961e6), 5), "2.9961e6");
+        assert_eq!(num(None, 3), "—");
+        assert_eq!(num(Some(f64::NAN), 3), "—");
+    }
+}
