@@ -12,6 +12,8 @@
 //! Modules, in dependency order (a module uses only those above it):
 //! - [`constants`]: SI constants (2019 exact values).
 //! - [`error`]: the typed error every fallible function returns.
+//! - [`limits`]: the memory budget every size from a file or the command line is checked against.
+//! - [`input`]: opening input files (regular files only, without blocking, size-bounded).
 //! - [`spectrum`]: spectral curves (filters, QE, transmissions), their file form
 //!   ([`spectrum::SpectrumConfig`]) and integration weights.
 //! - [`radiometry`]: Planck's law, band integrals, the camera equation, apparent temperature.
@@ -61,7 +63,9 @@ pub mod detector;
 pub mod display;
 pub mod error;
 pub mod imaging;
+pub mod input;
 pub mod io;
+pub mod limits;
 pub mod motion;
 pub mod optics;
 pub mod pipeline;

@@ -14,6 +14,10 @@ use cli::{characterize, edge_mtf, mtf, nuc, restore, run, sensors};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Memory limit for any single run, e.g. 512M or 8G (default: 3/4 of physical memory).
+    /// Sizes from files and options are checked against it before allocating.
+    #[arg(long, global = true, value_name = "SIZE")]
+    max_memory: Option<String>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -42,6 +46,10 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Err(e) = setup(&cli) {
+        eprintln!("error: {}", one_line(&e));
+        return ExitCode::FAILURE;
+    }
     let result = match cli.command {
         Command::Run(args) => run::run(args),
         Command::Demo(args) => run::demo(args),
@@ -63,10 +71,29 @@ fn main() -> ExitCode {
     }
 }
 
-/// The error and its causes on one line.
+/// Process-wide safety settings: the SIGINT/SIGTERM handler that removes unfinished
+/// outputs, and the memory limit.
+fn setup(cli: &Cli) -> anyhow::Result<()> {
+    eoir::io::output::install_signal_handler()?;
+    if let Some(m) = &cli.max_memory {
+        eoir::limits::set_max_memory_bytes(eoir::limits::parse_bytes(m)?)?;
+    }
+    Ok(())
+}
+
+/// The error and its causes on one line; a cause whose text the message already
+/// contains (an I/O error the typed error printed) is not repeated.
 fn one_line(e: &anyhow::Error) -> String {
-    e.chain()
-        .map(|c| c.to_string())
-        .collect::<Vec<_>>()
-        .join(": ")
+    let mut line = String::new();
+    for c in e.chain() {
+        let text = c.to_string();
+        if line.contains(&text) {
+            continue;
+        }
+        if !line.is_empty() {
+            line.push_str(": ");
+        }
+        line.push_str(&text);
+    }
+    line
 }

@@ -315,7 +315,7 @@ impl MeasuredMtf {
     /// (e.g. `freq_cy_per_mrad, mtf`) is skipped. The table rules of [`MeasuredMtf::new`]
     /// apply. Errors name the file, the 1-based line number and the line's text.
     pub fn from_csv(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::input::read_text(path)?;
         let mut freq = Vec::new();
         let mut mtf = Vec::new();
         // (line number, line text) of every data row, for error messages.
@@ -347,7 +347,7 @@ impl MeasuredMtf {
                     format!(
                         "line {line_no}: `{}`: expected 2 columns (frequency in cycles/mrad, \
                          MTF), found {}",
-                        raw.trim(),
+                        crate::limits::escape_token(raw.trim()),
                         fields.len()
                     ),
                 ));
@@ -356,7 +356,7 @@ impl MeasuredMtf {
                 (Some(f), Some(m)) => {
                     freq.push(f);
                     mtf.push(m);
-                    rows.push((line_no, raw.trim().to_string()));
+                    rows.push((line_no, crate::limits::escape_token(raw.trim())));
                 }
                 _ => {
                     let bad = if parsed[0].is_none() {
@@ -367,9 +367,10 @@ impl MeasuredMtf {
                     return Err(Error::format(
                         path,
                         format!(
-                            "line {line_no}: `{}`: `{bad}` is not a number (expected \
+                            "line {line_no}: `{}`: `{}` is not a number (expected \
                              frequency in cycles/mrad and MTF)",
-                            raw.trim()
+                            crate::limits::escape_token(raw.trim()),
+                            crate::limits::escape_token(bad)
                         ),
                     ));
                 }

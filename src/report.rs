@@ -468,22 +468,28 @@ impl MtfCurves {
 
     /// Writes the curves as CSV: `freq_cy_per_mrad`, one column per component, `system`.
     pub fn write_csv(&self, path: &Path) -> Result<()> {
+        let text = self.csv_text();
         crate::io::atomic_write(path, |w| {
-            let mut text = String::from("freq_cy_per_mrad");
-            for (name, _) in &self.columns {
-                text.push(',');
-                text.push_str(name);
-            }
-            text.push('\n');
-            for (i, f) in self.freq_cy_per_mrad.iter().enumerate() {
-                text.push_str(&format!("{f:.6}"));
-                for (_, v) in &self.columns {
-                    text.push_str(&format!(",{:.8}", v[i]));
-                }
-                text.push('\n');
-            }
             w.write_all(text.as_bytes()).map_err(|e| Error::io(path, e))
         })
+    }
+
+    /// The CSV text [`MtfCurves::write_csv`] writes (for `--csv -`, standard output).
+    pub fn csv_text(&self) -> String {
+        let mut text = String::from("freq_cy_per_mrad");
+        for (name, _) in &self.columns {
+            text.push(',');
+            text.push_str(name);
+        }
+        text.push('\n');
+        for (i, f) in self.freq_cy_per_mrad.iter().enumerate() {
+            text.push_str(&format!("{f:.6}"));
+            for (_, v) in &self.columns {
+                text.push_str(&format!(",{:.8}", v[i]));
+            }
+            text.push('\n');
+        }
+        text
     }
 
     /// Plots the curves as a PNG with the detector Nyquist frequency marked.

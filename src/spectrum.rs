@@ -259,7 +259,7 @@ impl Spectrum {
     /// and the offending text; table rules (increasing λ > 0, finite values ≥ 0, ≥ 2 rows)
     /// are checked with line numbers too.
     pub fn from_csv(path: &Path) -> Result<Spectrum> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::input::read_text(path)?;
         let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
         let mut wavelength_um = Vec::new();
         let mut value = Vec::new();
@@ -290,7 +290,7 @@ impl Spectrum {
                     format!(
                         "line {line_no}: expected 2 columns (wavelength µm, value), found {} in \"{}\"",
                         fields.len(),
-                        raw_line.trim()
+                        crate::limits::escape_token(raw_line.trim())
                     ),
                 ));
             }
@@ -300,8 +300,9 @@ impl Spectrum {
                     Error::format(
                         path,
                         format!(
-                            "line {line_no}: cannot read {name} \"{field}\" as a number (line: \"{}\")",
-                            raw_line.trim()
+                            "line {line_no}: cannot read {name} \"{}\" as a number (line: \"{}\")",
+                            crate::limits::escape_token(field),
+                            crate::limits::escape_token(raw_line.trim())
                         ),
                     )
                 })?;
@@ -413,6 +414,23 @@ impl Spectrum {
         points.sort_by(f64::total_cmp);
         points.dedup();
         points
+    }
+
+    /// The largest value the curve takes: exact for a single shape (constant, top-hat and
+    /// Gaussian peak, photon-detector value at cut-off, table maximum), and for a product
+    /// the product of its factors' peaks (an upper bound). Used to reject a transmission
+    /// or quantum efficiency above 1.
+    pub fn peak_value(&self) -> f64 {
+        fn peak(k: &Kind) -> f64 {
+            match k {
+                Kind::Constant { value } => *value,
+                Kind::TopHat { peak, .. } | Kind::Gaussian { peak, .. } => *peak,
+                Kind::PhotonDetector { scale, .. } => *scale,
+                Kind::Table { value, .. } => value.iter().copied().fold(0.0, f64::max),
+                Kind::Product { factors } => factors.iter().map(peak).product(),
+            }
+        }
+        peak(&self.kind)
     }
 
     /// The curve evaluated at each wavelength of `grid_um` (µm).
@@ -649,6 +667,21 @@ pub fn trapezoid_weights(grid_um: &[f64]) -> Result<Vec<f64>> {
         weights[i + 1] += half;
     }
     Ok(weights)
+}
+
+/// Checks that a transmission, filter or quantum efficiency never exceeds 1 (a
+/// transmission > 1 creates energy; a QE > 1 counts more than one electron per photon,
+/// which no detector in eoir's scope does) and is finite; `field` names the setting.
+pub fn require_fraction(field: &str, s: Spectrum) -> Result<Spectrum> {
+    let peak = s.peak_value();
+    if !(peak.is_finite() && peak <= 1.0) {
+        return Err(Error::param(
+            field,
+            format!("peak {peak}"),
+            "a transmission / quantum efficiency between 0 and 1 at every wavelength",
+        ));
+    }
+    Ok(s)
 }
 
 fn one() -> f64 {

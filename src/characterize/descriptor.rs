@@ -210,7 +210,7 @@ impl Descriptor {
     ///
     /// Errors: as [`parse`](Self::parse), an unreadable file, or a missing image (named).
     pub fn read(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::input::read_text(path)?;
         let d = Self::parse(&text, path)?;
         let dir = path.parent().unwrap_or(Path::new("."));
         for s in &d.series {

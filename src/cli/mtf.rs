@@ -22,7 +22,7 @@ pub struct MtfArgs {
     /// Number of frequency points.
     #[arg(long, default_value_t = 201)]
     pub points: usize,
-    /// Write the curves as CSV.
+    /// Write the curves as CSV (`-`: standard output).
     #[arg(long)]
     pub csv: Option<PathBuf>,
     /// Write a PNG plot.
@@ -40,8 +40,23 @@ pub fn mtf(args: MtfArgs) -> Result<()> {
         Some(w) => w,
         None => mean_wavelength_um(&sensor).context("choosing the default wavelength")?,
     };
+    // Every curve (about a dozen components) holds one f64 per point, plus the CSV text.
+    eoir::limits::check_alloc("--points", &[("points", args.points as u64)], 16 * 8 + 200)?;
+    let to_stdout = args.csv.as_deref().is_some_and(eoir::io::output::is_stdout);
     let curves = MtfCurves::compute(&sensor, wavelength_um, args.max_cy_per_mrad, args.points)?;
     let at_nyquist = curves.system_at_nyquist;
+    if to_stdout {
+        use std::io::Write;
+        let mut out = std::io::stdout().lock();
+        out.write_all(curves.csv_text().as_bytes())
+            .and_then(|_| out.flush())
+            .context("writing the CSV to standard output")?;
+        if let Some(path) = &args.png {
+            curves.write_png(path, &sensor.name)?;
+            eprintln!("wrote {}", path.display());
+        }
+        return Ok(());
+    }
     println!(
         "{}: λ = {:.3} µm, optical cutoff {:.3} cy/mrad, detector Nyquist {:.3} cy/mrad, system MTF at Nyquist {:.4}",
         sensor.name, wavelength_um, curves.cutoff_cy_per_mrad, curves.nyquist_cy_per_mrad, at_nyquist

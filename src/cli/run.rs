@@ -6,6 +6,7 @@ use anyhow::{bail, Context, Result};
 
 use eoir::calibration::{Calibration, CalibrationOptions};
 use eoir::detector::DetectorInstance;
+use eoir::io::output::ProductSet;
 use eoir::pipeline::{self, RunOptions};
 use eoir::scene::synthetic::{self, SceneParams};
 use eoir::scene::Geometry;
@@ -179,7 +180,7 @@ fn run_file(
         progress.imaging(done, total)
     })?;
     progress.writing();
-    let written = out.write(output)?;
+    out.write(output)?;
     progress.finish();
     for w in &out.warnings {
         eprintln!("warning: {w}");
@@ -219,23 +220,33 @@ fn run_file(
             },
             r.timings_s.total,
         );
-        for p in written {
-            println!("wrote {}", p.display());
-        }
     }
     Ok(out)
 }
 
 /// Calibration levels for a NUC of `degree`: at least degree + 2 blackbody temperatures
-/// spread over 280–320 K.
-fn calibration_options(degree: usize) -> CalibrationOptions {
+/// spread over 280–320 K. Errors for a degree outside 0..=[`eoir::processing::nuc::MAX_DEGREE`].
+fn calibration_options(degree: usize) -> Result<CalibrationOptions> {
+    let max = eoir::processing::nuc::MAX_DEGREE;
+    if degree > max {
+        bail!("--nuc-degree {degree}: the NUC polynomial degree must be 0 to {max}");
+    }
     let levels = (degree + 2).max(3);
-    CalibrationOptions {
+    Ok(CalibrationOptions {
         temperatures_k: (0..levels)
             .map(|i| 280.0 + 40.0 * i as f64 / (levels - 1) as f64)
             .collect(),
         degree,
         ..Default::default()
+    })
+}
+
+/// Prints the final paths of a committed product set.
+fn print_written(paths: &[PathBuf], quiet: bool) {
+    if !quiet {
+        for p in paths {
+            println!("wrote {}", p.display());
+        }
     }
 }
 
@@ -274,7 +285,7 @@ pub fn temperature(args: TemperatureArgs) -> Result<()> {
         &sensor,
         model,
         &instance,
-        &calibration_options(args.nuc_degree),
+        &calibration_options(args.nuc_degree)?,
     )?;
     let (temperature, radiance, nan) = match eoir::io::raster::read_tiff_u16(&args.input) {
         Ok(dn) => {
@@ -291,16 +302,14 @@ pub fn temperature(args: TemperatureArgs) -> Result<()> {
             (t, None, nan)
         }
     };
-    std::fs::create_dir_all(&args.output)
-        .with_context(|| format!("creating {}", args.output.display()))?;
-    let p = args.output.join("temperature.tiff");
+    let set = ProductSet::begin(&args.output)?;
+    let p = set.staging_dir().join("temperature.tiff");
     eoir::io::raster::write_tiff_f32(&p, temperature.mapv(|v| v as f32).view())?;
-    println!("wrote {}", p.display());
     if let Some(l) = radiance {
-        let p = args.output.join("radiance.tiff");
+        let p = set.staging_dir().join("radiance.tiff");
         eoir::io::raster::write_tiff_f32(&p, l.mapv(|v| v as f32).view())?;
-        println!("wrote {}", p.display());
     }
+    print_written(&set.commit()?, false);
     let (lo, hi) = cal.lut_range_k();
     println!(
         "{nan} pixels outside the calibrated range {lo:.1}–{hi:.1} K (NaN); NETD at 300 K {:.1} mK",
@@ -314,6 +323,11 @@ pub fn run(args: RunArgs) -> Result<()> {
     let geometry = match &args.fov_deg {
         Some(t) => {
             let (h, v) = crate::cli::parse_pair(t, "--fov-deg")?;
+            for (axis, deg) in [("H", h), ("V", v)] {
+                if !(deg.is_finite() && deg > 0.0 && deg < 180.0) {
+                    bail!("--fov-deg {t}: the {axis} field of view {deg}° must be a number in (0, 180) degrees");
+                }
+            }
             Some(Geometry {
                 fov_x_deg: h,
                 fov_y_deg: v,
@@ -322,6 +336,9 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
         None => None,
     };
+    if args.frames == 0 {
+        bail!("--frames 0: at least one frame is needed");
+    }
     let read = eoir::io::ReadOptions {
         radiance_units: args.radiance_units.clone(),
     };
@@ -329,19 +346,21 @@ pub fn run(args: RunArgs) -> Result<()> {
         seed: args.seed,
         geometry,
         frames: args.frames,
-        calibration: Some(calibration_options(args.nuc_degree)),
+        calibration: Some(calibration_options(args.nuc_degree)?),
         ..Default::default()
     };
     if !args.composite {
         let sensor = args.sensor.load()?;
+        let set = ProductSet::begin(&args.output)?;
         run_file(
             &sensor,
             &args.input,
-            &args.output,
+            set.staging_dir(),
             options,
             &read,
             args.quiet,
         )?;
+        print_written(&set.commit()?, args.quiet);
         return Ok(());
     }
     let info = presets::list()
@@ -383,6 +402,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         ));
     }
     sensors.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let set = ProductSet::begin(&args.output)?;
     let mut outs = Vec::new();
     let mut shared_gain: Option<f64> = None;
     for (lambda, ch, mut sensor) in sensors {
@@ -393,7 +413,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         let out = run_file(
             &build(&sensor)?,
             &args.input,
-            &args.output.join(format!("channel-{ch}")),
+            &set.staging_dir().join(format!("channel-{ch}")),
             options.clone(),
             &read,
             args.quiet,
@@ -405,10 +425,15 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     let refs: Vec<(f64, &pipeline::RunOutput)> = outs.iter().map(|(l, o)| (*l, o)).collect();
     let rgb = pipeline::false_colour_composite(&refs)?;
-    let p = args.output.join("composite.png");
+    let p = set.staging_dir().join("composite.png");
     eoir::io::raster::write_png_rgb8(&p, rgb.view())?;
+    let final_png = set.final_path(&p);
+    print_written(&set.commit()?, args.quiet);
     if !args.quiet {
-        println!("wrote {} (longest-wavelength channel → red)", p.display());
+        println!(
+            "{} is the false-colour composite (longest-wavelength channel → red)",
+            final_png.display()
+        );
     }
     Ok(())
 }
@@ -439,16 +464,15 @@ pub fn demo(args: DemoArgs) -> Result<()> {
         seed: args.seed,
         sun: true,
     };
-    std::fs::create_dir_all(&args.output)
-        .with_context(|| format!("creating {}", args.output.display()))?;
-    let scene_path = args.output.join("scene.hdr");
+    let set = ProductSet::begin(&args.output)?;
+    let scene_path = set.staging_dir().join("scene.hdr");
     let cube = synthetic::thermal(&params)?;
     eoir::io::write_cube(&scene_path, &cube)?;
     drop(cube);
     if !args.quiet {
         println!(
-            "wrote {} (thermal scene, {} x {} x {} bands, {:.3}–{:.3} µm)",
-            scene_path.display(),
+            "{} holds the thermal scene, {} x {} x {} bands, {:.3}–{:.3} µm",
+            set.final_path(&scene_path).display(),
             params.cols * params.oversampling,
             params.rows * params.oversampling,
             bands,
@@ -459,7 +483,7 @@ pub fn demo(args: DemoArgs) -> Result<()> {
     run_file(
         &sensor,
         &scene_path,
-        &args.output,
+        set.staging_dir(),
         RunOptions {
             seed: args.seed,
             ..Default::default()
@@ -467,6 +491,7 @@ pub fn demo(args: DemoArgs) -> Result<()> {
         &eoir::io::ReadOptions::default(),
         args.quiet,
     )?;
+    print_written(&set.commit()?, args.quiet);
     Ok(())
 }
 

@@ -531,6 +531,12 @@ impl Imager {
             ax.pad_before = p;
             ax.padded_len = next_fast_len(n + 2 * p);
         }
+        crate::limits::check_run(
+            (sampling.y.padded_len, sampling.x.padded_len),
+            (meta.rows, meta.cols),
+            (sensor.detector.rows, sensor.detector.cols),
+            1,
+        )?;
         let fft = RealFft2::new(sampling.y.padded_len, sampling.x.padded_len);
         let grid = FrequencyGrid::real_fft(sampling.y.padded_len, sampling.x.padded_len, dy, dx);
         let pad_y = PadMap::new(meta.rows, sampling.y.pad_before, sampling.y.padded_len);

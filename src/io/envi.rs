@@ -221,9 +221,10 @@ impl Header {
             }
             let Some((k, v)) = l.split_once('=') else {
                 warnings.push(format!(
-                    "{}: line {} ignored (no `key = value`): `{l}`",
+                    "{}: line {} ignored (no `key = value`): `{}`",
                     path.display(),
-                    i + 1
+                    i + 1,
+                    crate::limits::escape_token(l)
                 ));
                 continue;
             };
@@ -506,7 +507,7 @@ impl EnviReader {
     /// Like [`open`](Self::open), with reading options (a radiance-unit override).
     pub fn open_with(path: &Path, options: &ReadOptions) -> Result<Self> {
         let (header_path, data_path) = find_pair(path)?;
-        let bytes = std::fs::read(&header_path).map_err(|e| Error::io(&header_path, e))?;
+        let bytes = crate::io::input::read_regular(&header_path, crate::io::input::MAX_TEXT_BYTES)?;
         let text = String::from_utf8_lossy(&bytes);
         let mut warnings = Vec::new();
         let h = Header::parse(&header_path, &text, &mut warnings)?;
@@ -720,13 +721,18 @@ impl EnviReader {
             .and_then(|n| n.checked_mul(ty.size() as u64))
             .and_then(|n| n.checked_add(header_offset))
             .ok_or_else(|| Error::format(&header_path, "samples × lines × bands is too large"))?;
-        let file = File::open(&data_path).map_err(|e| Error::io(&data_path, e))?;
+        let file = crate::io::input::open_regular(&data_path)?;
         let actual = file.metadata().map_err(|e| Error::io(&data_path, e))?.len();
         let layout = format!(
             "header offset {header_offset} + {cols} samples × {rows} lines × {bands} bands × {} bytes",
             ty.size()
         );
         check_size(&data_path, actual, expected, &layout)?;
+        crate::limits::check_alloc(
+            &format!("reading one band of {}", header_path.display()),
+            &[("lines", rows as u64), ("samples", cols as u64)],
+            4 + ty.size() as u64,
+        )?;
 
         Ok(EnviReader {
             meta,

@@ -354,6 +354,45 @@ pub struct ExrReader {
     warnings: Vec<String>,
 }
 
+/// Reads the headers only and checks, before any pixel is decoded, that every part's data
+/// window × channels (as f32, the decoder's flat samples, plus this reader's band planes:
+/// 8 bytes per sample) fits the memory budget ([`crate::limits`]); rewinds `file`.
+fn check_exr_size(path: &Path, file: &mut std::io::BufReader<std::fs::File>) -> Result<()> {
+    use std::io::{Seek, SeekFrom};
+    let meta = exr::meta::MetaData::read_from_buffered(&mut *file, false).map_err(|e| match e {
+        exr::error::Error::Io(io) => Error::io(path, io),
+        other => Error::format(path, format!("not a readable OpenEXR file: {other}")),
+    })?;
+    let mut total: u64 = 0;
+    for h in meta.headers.iter() {
+        let dims = [
+            ("columns", h.layer_size.0 as u64),
+            ("rows", h.layer_size.1 as u64),
+            ("channels", h.channels.list.len() as u64),
+        ];
+        let n = crate::limits::checked_count(&format!("reading {}", path.display()), &dims)?;
+        total = n
+            .checked_mul(8)
+            .and_then(|b| b.checked_add(total))
+            .ok_or_else(|| Error::TooLarge {
+                what: "the OpenEXR image".into(),
+                needed: "more than 2^64 bytes".into(),
+                limit: crate::limits::max_memory_bytes(),
+            })?;
+    }
+    crate::limits::check_bytes(
+        &format!("reading {}", path.display()),
+        &format!(
+            "{} part(s): data windows × channels × 8 bytes",
+            meta.headers.len()
+        ),
+        total,
+    )?;
+    file.seek(SeekFrom::Start(0))
+        .map_err(|e| Error::io(path, e))?;
+    Ok(())
+}
+
 impl ExrReader {
     /// Opens and reads a spectral OpenEXR file, parsing the band order from the channel
     /// names and the units and geometry from the attributes.
@@ -363,14 +402,16 @@ impl ExrReader {
 
     /// Like [`open`](Self::open), with reading options (a radiance-unit override).
     pub fn open_with(path: &Path, options: &ReadOptions) -> Result<Self> {
-        std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+        let file = crate::io::input::open_regular(path)?;
+        let mut file = std::io::BufReader::new(file);
+        check_exr_size(path, &mut file)?;
         let image = exr::prelude::read()
             .no_deep_data()
             .largest_resolution_level()
             .all_channels()
             .all_layers()
             .all_attributes()
-            .from_file(path)
+            .from_buffered(file)
             .map_err(|e| match e {
                 exr::error::Error::Io(io) => Error::io(path, io),
                 other => Error::format(path, format!("not a readable OpenEXR file: {other}")),

@@ -29,8 +29,10 @@ pub mod envi;
 pub mod exr;
 #[cfg(feature = "hdf5")]
 pub mod hdf5;
+pub mod input;
 pub mod metadata;
 pub mod npy;
+pub mod output;
 pub mod raster;
 
 pub use metadata::ReadOptions;
@@ -128,6 +130,15 @@ pub fn open_with(path: &Path, options: &ReadOptions) -> Result<Box<dyn CubeReade
 /// Reads frame `frame` of a cube file completely into memory.
 pub fn read_cube_frame(reader: &mut dyn CubeReader, frame: usize) -> Result<Cube> {
     let meta = reader.meta().clone();
+    crate::limits::check_alloc(
+        "reading the whole cube into memory",
+        &[
+            ("bands", meta.bands() as u64),
+            ("rows", meta.rows as u64),
+            ("cols", meta.cols as u64),
+        ],
+        4,
+    )?;
     let mut data = Array3::<f32>::zeros((meta.bands(), meta.rows, meta.cols));
     for b in 0..meta.bands() {
         let plane = reader.read_band(frame, b)?;
@@ -169,17 +180,25 @@ fn temp_path(path: &Path) -> PathBuf {
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    path.with_file_name(format!(".{name}.eoir-tmp-{}", std::process::id()))
+    path.with_file_name(format!(
+        ".{name}{}{}",
+        output::TEMP_MARKER,
+        std::process::id()
+    ))
 }
 
 /// Writes a file atomically: `write` fills a temporary file in the same directory, which
 /// is synced and renamed over `path` only if `write` succeeds; otherwise it is removed and
-/// `path` is untouched.
+/// `path` is untouched. `path` must be absent or a regular file (see
+/// [`output::check_output_target`]); the temporary file is removed on SIGINT/SIGTERM
+/// once [`output::install_signal_handler`] ran.
 pub fn atomic_write<F>(path: &Path, write: F) -> Result<()>
 where
     F: FnOnce(&mut BufWriter<File>) -> Result<()>,
 {
+    output::check_output_target(path)?;
     let tmp = temp_path(path);
+    output::register_cleanup(&tmp);
     let result = (|| {
         let file = File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
         let mut w = BufWriter::new(file);
@@ -193,6 +212,7 @@ where
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
+    output::unregister_cleanup(&tmp);
     result
 }
 
@@ -202,12 +222,15 @@ pub fn atomic_write_path<F>(path: &Path, write: F) -> Result<()>
 where
     F: FnOnce(&Path) -> Result<()>,
 {
+    output::check_output_target(path)?;
     let tmp = temp_path(path);
+    output::register_cleanup(&tmp);
     let result =
         write(&tmp).and_then(|_| std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)));
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
+    output::unregister_cleanup(&tmp);
     result
 }
 

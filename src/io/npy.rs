@@ -99,10 +99,18 @@ enum Py {
     Dict(Vec<(Py, Py)>),
 }
 
-/// Recursive-descent parser for the NPY header dictionary.
+/// Deepest nesting of `(`, `[`, `{` an NPY header may use. A real header nests at most
+/// four deep (dict → structured descr list → field tuple → sub-shape tuple); the bound keeps
+/// the recursive descent's stack use independent of the input (a 35 KB header nested
+/// 17,000 deep would otherwise overflow the stack).
+pub const MAX_HEADER_DEPTH: usize = 16;
+
+/// Recursive-descent parser for the NPY header dictionary, depth-bounded by
+/// [`MAX_HEADER_DEPTH`].
 struct PyParser<'a> {
     s: &'a [u8],
     i: usize,
+    depth: usize,
 }
 
 impl PyParser<'_> {
@@ -149,6 +157,22 @@ impl PyParser<'_> {
     }
 
     fn value(&mut self) -> std::result::Result<Py, String> {
+        if matches!(self.peek(), Some(b'(' | b'[' | b'{')) {
+            if self.depth >= MAX_HEADER_DEPTH {
+                return Err(format!(
+                    "nesting deeper than {MAX_HEADER_DEPTH} levels at byte {}",
+                    self.i
+                ));
+            }
+            self.depth += 1;
+            let v = self.nested_value();
+            self.depth -= 1;
+            return v;
+        }
+        self.nested_value()
+    }
+
+    fn nested_value(&mut self) -> std::result::Result<Py, String> {
         match self.peek() {
             None => Err("unexpected end of header".into()),
             Some(q @ (b'\'' | b'"')) => {
@@ -203,9 +227,9 @@ impl PyParser<'_> {
                     self.i += 1;
                 }
                 let text = std::str::from_utf8(&self.s[start..self.i]).unwrap_or("");
-                let n = text
-                    .parse::<u64>()
-                    .map_err(|_| format!("number `{text}` too large"))?;
+                let n = text.parse::<u64>().map_err(|_| {
+                    format!("number `{}` too large", crate::limits::escape_token(text))
+                })?;
                 // Python 2 long suffix.
                 if matches!(self.s.get(self.i), Some(b'L' | b'l')) {
                     self.i += 1;
@@ -221,12 +245,16 @@ impl PyParser<'_> {
                     b"True" => Ok(Py::Bool(true)),
                     b"False" => Ok(Py::Bool(false)),
                     b"None" => Ok(Py::None),
-                    w => Err(format!("unexpected word `{}`", String::from_utf8_lossy(w))),
+                    w => Err(format!(
+                        "unexpected word `{}`",
+                        crate::limits::escape_token(&String::from_utf8_lossy(w))
+                    )),
                 }
             }
             Some(c) => Err(format!(
                 "unexpected character `{}` at byte {}",
-                c as char, self.i
+                (c as char).escape_default(),
+                self.i
             )),
         }
     }
@@ -245,7 +273,8 @@ struct NpyHeader {
 /// Parses the dtype string of a simple (non-structured) array.
 fn parse_descr(path: &Path, d: &str) -> Result<(SampleType, bool)> {
     let supported = "supported dtypes are <f4, <f8, >f4, >f8, <u2, >u2, <i2, >i2 (convert with a.astype('<f4'))";
-    let (order, code) = d.split_at(d.len().min(1));
+    // Split after the first character, not byte: a mutated header may hold non-ASCII.
+    let (order, code) = d.split_at(d.chars().next().map_or(0, char::len_utf8));
     let big_endian = match order {
         "<" => false,
         ">" => true,
@@ -253,7 +282,10 @@ fn parse_descr(path: &Path, d: &str) -> Result<(SampleType, bool)> {
         _ => {
             return Err(Error::format(
                 path,
-                format!("array dtype `{d}` is not supported; {supported}"),
+                format!(
+                    "array dtype `{}` is not supported; {supported}",
+                    crate::limits::escape_token(d)
+                ),
             ))
         }
     };
@@ -265,7 +297,10 @@ fn parse_descr(path: &Path, d: &str) -> Result<(SampleType, bool)> {
         _ => {
             return Err(Error::format(
                 path,
-                format!("array dtype `{d}` is not supported; {supported}"),
+                format!(
+                    "array dtype `{}` is not supported; {supported}",
+                    crate::limits::escape_token(d)
+                ),
             ))
         }
     };
@@ -319,6 +354,7 @@ fn read_header(path: &Path, file: &mut File, file_len: u64) -> Result<NpyHeader>
     let mut p = PyParser {
         s: text.as_bytes(),
         i: 0,
+        depth: 0,
     };
     let dict = match p.value() {
         Ok(Py::Dict(d)) => d,
@@ -326,7 +362,7 @@ fn read_header(path: &Path, file: &mut File, file_len: u64) -> Result<NpyHeader>
         Err(e) => {
             return Err(bad(format!(
                 "cannot parse the NPY header `{}`: {e}",
-                text.trim()
+                crate::limits::escape_token(text.trim())
             )))
         }
     };
@@ -414,7 +450,7 @@ impl NpyReader {
 
     /// Like [`open`](Self::open), with reading options (a radiance-unit override).
     pub fn open_with(path: &Path, options: &ReadOptions) -> Result<Self> {
-        let mut file = File::open(path).map_err(|e| Error::io(path, e))?;
+        let mut file = crate::io::input::open_regular(path)?;
         let file_len = file.metadata().map_err(|e| Error::io(path, e))?.len();
         let h = read_header(path, &mut file, file_len)?;
         let (frames, bands, rows, cols) = match h.shape[..] {
@@ -424,8 +460,7 @@ impl NpyReader {
                 return Err(Error::format(
                     path,
                     format!(
-                        "array shape {:?} has {} dimensions; expected [band, row, col] or [frame, band, row, col]",
-                        h.shape,
+                        "array shape has {} dimensions; expected [band, row, col] or [frame, band, row, col]",
                         h.shape.len()
                     ),
                 ))
@@ -449,11 +484,16 @@ impl NpyReader {
             h.ty.size()
         );
         check_size(path, file_len, payload, &layout)?;
+        crate::limits::check_alloc(
+            &format!("reading one band of {}", path.display()),
+            &[("rows", rows as u64), ("cols", cols as u64)],
+            4 + h.ty.size() as u64,
+        )?;
 
         let side = sidecar_path(path);
-        let text = match std::fs::read_to_string(&side) {
+        let text = match crate::io::input::read_text(&side) {
             Ok(t) => t,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            Err(Error::Io { source, .. }) if source.kind() == std::io::ErrorKind::NotFound => {
                 return Err(Error::format(
                     path,
                     format!(
@@ -463,7 +503,7 @@ impl NpyReader {
                     ),
                 ))
             }
-            Err(e) => return Err(Error::io(&side, e)),
+            Err(e) => return Err(e),
         };
         let sc: Sidecar = serde_json::from_str(&text).map_err(|e| {
             Error::format(

@@ -6,7 +6,6 @@
 //! image. Every writer goes through [`atomic_write`]: on any error
 //! the target is left untouched and no temporary file remains.
 
-use std::fs::File;
 use std::io::BufReader;
 use std::path::Path;
 
@@ -167,14 +166,28 @@ pub fn write_exr_f32(path: &Path, image: ArrayView2<f32>, channel: &str) -> Resu
     })
 }
 
+/// The TIFF decoder's own limits: the decoding buffer bounded by the memory budget
+/// ([`crate::limits`]), the IFD-value and intermediate-buffer limits at the crate defaults.
+fn tiff_limits() -> tiff::decoder::Limits {
+    let mut l = tiff::decoder::Limits::default();
+    l.decoding_buffer_size =
+        usize::try_from(crate::limits::max_memory_bytes()).unwrap_or(usize::MAX);
+    l
+}
+
 /// Opens a TIFF and decodes its first image, checking it is single-channel.
 fn read_tiff(path: &Path, want: &str) -> Result<(usize, usize, tiff::decoder::DecodingResult)> {
-    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let file = crate::io::input::open_regular(path)?;
     let mut dec = tiff::decoder::Decoder::new(BufReader::new(file))
         .map_err(|e| tiff_err(path, e))?
-        .with_limits(tiff::decoder::Limits::unlimited());
+        .with_limits(tiff_limits());
     let (w, h) = dec.dimensions().map_err(|e| tiff_err(path, e))?;
     let ct = dec.colortype().map_err(|e| tiff_err(path, e))?;
+    crate::limits::check_alloc(
+        &format!("decoding {}", path.display()),
+        &[("rows", h as u64), ("columns", w as u64)],
+        u64::from(ct.bit_depth().div_ceil(8).max(1)),
+    )?;
     if !matches!(ct, tiff::ColorType::Gray(_)) {
         return Err(Error::format(
             path,
@@ -238,7 +251,7 @@ fn tiff_kind(d: &tiff::decoder::DecodingResult) -> &'static str {
 
 /// Reads a 16-bit greyscale PNG.
 pub fn read_png_u16(path: &Path) -> Result<Array2<u16>> {
-    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let file = crate::io::input::open_regular(path)?;
     let mut reader = png::Decoder::new(BufReader::new(file))
         .read_info()
         .map_err(|e| png_dec_err(path, e))?;

@@ -3,7 +3,7 @@
 //! ([`crate::calibration::Calibration`]).
 
 use crate::calibration::{measured_netd, Calibration, CalibrationOptions};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::report::{CalibrationReport, ResidualNonuniformity};
 use crate::sensor::Sensor;
 
@@ -48,6 +48,19 @@ impl CalibrationOutcome {
     }
 }
 
+/// The error for a calibration whose flat fields give no usable pixels: with very few
+/// ADC bits (`detector.bits` = 1 or 2) the 280–320 K blackbody levels all quantise to the
+/// same DN, so no NUC, radiance or temperature can be derived. Names the setting.
+fn calibration_failed(sensor: &Sensor, e: Error) -> Error {
+    let bits = sensor.config().detector.bits;
+    Error::OutOfRange(format!(
+        "the radiometric calibration of `{}` found no usable pixels ({e}); with detector.bits = {} ({} DN levels) the blackbody calibration levels cannot be told apart — use more ADC bits (at least 3 for this sensor), or call the library with RunOptions::calibration = None for DN-only products",
+        sensor.config().name,
+        bits,
+        1u64 << bits.min(63)
+    ))
+}
+
 /// Calibrates `exposure`'s instance with `options` (when given and the sensor is thermal)
 /// and fills `radiance` and `temperature` of every frame.
 ///
@@ -81,7 +94,9 @@ pub fn calibrate_frames(
     }
     let temps = cal.temperatures_k();
     let t_check = 0.5 * (temps[0] + temps[temps.len() - 1]) + CHECK_OFFSET_K;
-    let (raw, corrected) = cal.residual_nonuniformity(instance, t_check)?;
+    let (raw, corrected) = cal
+        .residual_nonuniformity(instance, t_check)
+        .map_err(|e| calibration_failed(sensor, e))?;
     let temporal_floor = exposure
         .model()
         .temporal_noise_dn(cal.blackbody_electrons(t_check)?)

@@ -140,13 +140,60 @@ pub fn is_thermal(sensor: &Sensor) -> bool {
 
 /// The scene's field of view: the options' override, else the input's own.
 fn input_geometry(options: &RunOptions, meta: &CubeMeta) -> Result<Geometry> {
-    options.geometry.or(meta.geometry).ok_or_else(|| {
+    let geometry = options.geometry.or(meta.geometry).ok_or_else(|| {
         Error::param(
             "input field of view",
             "missing",
             "a field of view: pass --fov-deg H,V, or put `eoir fov deg = {H, V}` in the ENVI header / `fov_deg` in the NPY sidecar",
         )
-    })
+    })?;
+    // A geometry given in code or on the command line gets the same checks as a file's.
+    CubeMeta {
+        geometry: Some(geometry),
+        ..meta.clone()
+    }
+    .validate("the run's geometry (--fov-deg / RunOptions::geometry)")?;
+    Ok(geometry)
+}
+
+/// Checks the run's largest allocations (padded FFT planes, scene and detector frames,
+/// the frames kept) against the memory budget before any is made.
+fn check_budget(
+    imaging: &ImagingStage,
+    meta: &CubeMeta,
+    sensor: &Sensor,
+    frames: usize,
+) -> Result<()> {
+    let s = imaging.sampling();
+    let d = &sensor.config().detector;
+    crate::limits::check_run(
+        (s.y.padded_len, s.x.padded_len),
+        (meta.rows, meta.cols),
+        (d.rows, d.cols),
+        frames,
+    )
+    .map(|_| ())
+}
+
+/// The mean electrons of frame `f`, refused when a count is not finite or beyond the f32
+/// range of the products (it would be written as inf).
+fn finite_mean<'a>(
+    mean: &'a Option<Array2<f64>>,
+    f: usize,
+    input_name: &str,
+) -> Result<&'a Array2<f64>> {
+    let e = mean
+        .as_ref()
+        .ok_or_else(|| Error::OutOfRange("no frame imaged".into()))?;
+    if let Some(v) = e
+        .iter()
+        .find(|v| !(v.is_finite() && v.abs() <= f32::MAX as f64))
+    {
+        return Err(Error::OutOfRange(format!(
+            "frame {f} of `{input_name}`: the mean signal overflowed ({v:e} electrons, beyond the f32 range of the products); the input radiance or the sensor's spectral response (detector.quantum_efficiency, transmissions, integration time, pixel area) is too large to give a finite count"
+        )));
+    }
+    Ok(e)
 }
 
 /// Adds the warnings that appear only while running: the reader's (e.g. `data ignore
@@ -206,6 +253,7 @@ pub fn run(
     warnings.extend(sensor.detector().warnings().iter().cloned());
     let (input_frames, active) = (reader.frames(), imaging.bands_used());
     let n_frames = frame_count(input_frames, options.frames);
+    check_budget(&imaging, &meta, sensor, n_frames)?;
     let (mut frames, mut detector_s) = (Vec::with_capacity(n_frames), 0.0);
     let mut mean: Option<Array2<f64>> = None;
     let mut exposure: Option<Exposure> = None;
@@ -215,9 +263,7 @@ pub fn run(
             let e = imaging.mean_electrons(reader, f, |b| progress(f * active + b, total))?;
             mean = Some(e);
         }
-        let e = mean
-            .as_ref()
-            .ok_or_else(|| Error::OutOfRange("no frame imaged".into()))?;
+        let e = finite_mean(&mean, f, &options.input_name)?;
         let exposure = match &mut exposure {
             Some(x) => x,
             None => exposure.insert(Exposure::new(sensor, e, options.seed)?),

@@ -337,7 +337,7 @@ impl NucCoefficients {
     /// frame.
     pub fn load(path: &Path) -> Result<Self> {
         let side = sidecar_path(path)?;
-        let text = std::fs::read_to_string(&side).map_err(|e| Error::io(&side, e))?;
+        let text = crate::input::read_text(&side)?;
         let sc: NucSidecar = serde_json::from_str(&text)
             .map_err(|e| Error::format(&side, format!("invalid NUC sidecar: {e}")))?;
         if sc.format != FORMAT_NAME || sc.version != FORMAT_VERSION {

@@ -288,7 +288,7 @@ impl SensorConfig {
     /// [`apply_override`]) and validates the result. Errors name the file, the line or key,
     /// and what is valid.
     pub fn load(path: &Path, overrides: &[String]) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::input::read_text(path)?;
         let base_dir = path
             .parent()
             .map(Path::to_path_buf)
@@ -321,7 +321,7 @@ impl SensorConfig {
                         format!(
                             "after --set {}: {}",
                             overrides.join(" --set "),
-                            e.message().trim()
+                            crate::limits::escape_bounded(e.message().trim(), 160)
                         ),
                     )
                 })?;
@@ -346,7 +346,7 @@ impl SensorConfig {
             toml::Value::Table(table)
                 .try_into()
                 .map_err(|e: toml::de::Error| {
-                    let msg = e.message().trim().replace('\n', " ");
+                    let msg = crate::limits::escape_bounded(e.message().trim(), 160);
                     if overrides.is_empty() {
                         Error::format(source, msg)
                     } else {
@@ -388,6 +388,13 @@ impl SensorConfig {
             ));
         }
         let d = &self.detector;
+        // The detector instance holds about eight per-pixel f64 maps (FPN, dark, defects,
+        // calibration) besides the frames checked per run (crate::limits::check_run).
+        crate::limits::check_alloc(
+            "the detector (detector.rows × detector.cols per-pixel maps)",
+            &[("rows", d.rows as u64), ("cols", d.cols as u64)],
+            64,
+        )?;
         if d.rows == 0 || d.cols == 0 {
             return Err(Error::param(
                 "detector.rows/cols",
@@ -666,11 +673,12 @@ fn prefix_field(section: &str, e: Error) -> Error {
 
 /// Turns a TOML error into one line: `source: line L (`text`): message`.
 pub(crate) fn toml_error(source: &str, text: &str, e: &toml::de::Error) -> Error {
-    let msg = e.message().trim().replace('\n', " ");
+    let msg = crate::limits::escape_bounded(e.message().trim(), 160);
     match e.span() {
         Some(span) => {
             let line_no = text[..span.start.min(text.len())].matches('\n').count() + 1;
             let line = text.lines().nth(line_no - 1).unwrap_or("").trim();
+            let line = crate::limits::escape_token(line);
             Error::format(source, format!("line {line_no} (`{line}`): {msg}"))
         }
         None => Error::format(source, msg),

@@ -121,7 +121,7 @@ fn preset_names() -> String {
 pub fn load(spec: &str, options: &[String], overrides: &[String]) -> Result<SensorConfig> {
     let path = Path::new(spec);
     if path.exists() {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::io::input::read_text(path)?;
         let base_dir = path
             .parent()
             .map(Path::to_path_buf)

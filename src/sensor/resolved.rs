@@ -65,22 +65,35 @@ struct Spectra {
 }
 
 impl Spectra {
+    /// Builds the curves, refusing a transmission, filter or quantum efficiency above 1.
     fn build(config: &SensorConfig) -> Result<Self> {
         let dir = &config.base_dir;
+        let fraction = crate::spectrum::require_fraction;
         Ok(Spectra {
-            filter: config.filter.build(dir, "filter")?,
-            optics: config
-                .optics
-                .transmission
-                .build(dir, "optics.transmission")?,
-            qe: config
-                .detector
-                .quantum_efficiency
-                .build(dir, "detector.quantum_efficiency")?,
+            filter: fraction("filter", config.filter.build(dir, "filter")?)?,
+            optics: fraction(
+                "optics.transmission",
+                config
+                    .optics
+                    .transmission
+                    .build(dir, "optics.transmission")?,
+            )?,
+            qe: fraction(
+                "detector.quantum_efficiency",
+                config
+                    .detector
+                    .quantum_efficiency
+                    .build(dir, "detector.quantum_efficiency")?,
+            )?,
             atmosphere: config
                 .atmosphere
                 .as_ref()
-                .map(|a| a.transmission.build(dir, "atmosphere.transmission"))
+                .map(|a| {
+                    fraction(
+                        "atmosphere.transmission",
+                        a.transmission.build(dir, "atmosphere.transmission")?,
+                    )
+                })
                 .transpose()?,
         })
     }

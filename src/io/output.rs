@@ -1,0 +1,313 @@
+//! Writing outputs safely: whole product sets or none, and never over a special file.
+//!
+//! # Semantics
+//! - **One file** ([`super::atomic_write`]): written to a hidden temporary file
+//!   (`.NAME.eoir-tmp-PID`) in the same directory, synced, and renamed over the target
+//!   only when complete. The target must be absent or a regular file: a directory,
+//!   device, FIFO, socket **or symbolic link** is refused ([`check_output_target`]) —
+//!   renaming over it would replace the special file (e.g. `/dev/null`) instead of writing
+//!   through it, and following a link would let a planted link redirect the write.
+//!   Symlinks in the *directories* of the path are followed.
+//! - **A product set** ([`ProductSet`]): every product of a run is written into a staging
+//!   directory `.eoir-staging-PID-N` inside the output directory. Only when all of them
+//!   succeeded are the targets checked (all of them, before anything moves) and the files
+//!   renamed into place; the staging directory is then removed. On any error the staging
+//!   directory is removed and the output directory is left exactly as it was. Products
+//!   of an earlier run whose names the new run does not write (e.g. frames beyond the new
+//!   frame count) are left alone.
+//! - **Signals**: [`install_signal_handler`] (the CLI calls it first thing) catches
+//!   SIGINT and SIGTERM on a dedicated thread, removes every registered staging directory
+//!   and temporary file, and exits with status 128 + signal. The move into place holds
+//!   the same lock, so a signal during the move waits for it to finish: the directory
+//!   then holds either the complete old set or the complete new set.
+//! - **`-`** names standard output where a single text stream makes sense (`eoir mtf
+//!   --csv -`); see [`is_stdout`].
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Mutex, MutexGuard};
+
+use crate::error::{Error, Result};
+
+/// Staging directories and temporary files to remove if the process is interrupted.
+static CLEANUP: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Counter making staging-directory names unique within the process.
+static STAGING_SEQ: AtomicUsize = AtomicUsize::new(0);
+
+/// Prefix of staging directory names (for tests and cleanup tools).
+pub const STAGING_PREFIX: &str = ".eoir-staging-";
+
+/// Marker contained in every temporary file name.
+pub const TEMP_MARKER: &str = ".eoir-tmp-";
+
+fn cleanup_list() -> MutexGuard<'static, Vec<PathBuf>> {
+    CLEANUP.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// Registers `path` (a temporary file or staging directory) for removal on SIGINT/SIGTERM.
+pub fn register_cleanup(path: &Path) {
+    cleanup_list().push(path.to_path_buf());
+}
+
+/// Removes `path` from the cleanup list (it was renamed into place or removed).
+pub fn unregister_cleanup(path: &Path) {
+    let mut l = cleanup_list();
+    if let Some(i) = l.iter().rposition(|p| p == path) {
+        l.swap_remove(i);
+    }
+}
+
+fn remove_any(path: &Path) {
+    match std::fs::symlink_metadata(path) {
+        Ok(m) if m.is_dir() => {
+            let _ = std::fs::remove_dir_all(path);
+        }
+        Ok(_) => {
+            let _ = std::fs::remove_file(path);
+        }
+        Err(_) => {}
+    }
+}
+
+/// Installs the SIGINT/SIGTERM handler described in the module documentation. Call once,
+/// early; later calls do nothing. Errors if the handler cannot be registered.
+#[cfg(unix)]
+pub fn install_signal_handler() -> Result<()> {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    static INSTALLED: std::sync::Once = std::sync::Once::new();
+    let mut result = Ok(());
+    INSTALLED.call_once(|| {
+        match signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) {
+            Ok(mut signals) => {
+                let spawned = std::thread::Builder::new()
+                    .name("eoir-signals".into())
+                    .spawn(move || {
+                        if let Some(sig) = signals.forever().next() {
+                            // Holding the lock: a product set being moved into place
+                            // finishes first, and nothing new is registered meanwhile.
+                            let list = cleanup_list();
+                            for p in list.iter().rev() {
+                                remove_any(p);
+                            }
+                            eprintln!(
+                                "eoir: interrupted (signal {sig}); removed unfinished outputs"
+                            );
+                            std::process::exit(128 + sig);
+                        }
+                    });
+                if let Err(e) = spawned {
+                    result = Err(Error::io("signal handler thread", e));
+                }
+            }
+            Err(e) => result = Err(Error::io("signal handler", e)),
+        }
+    });
+    result
+}
+
+/// Installs nothing where POSIX signals do not exist.
+#[cfg(not(unix))]
+pub fn install_signal_handler() -> Result<()> {
+    Ok(())
+}
+
+/// `true` when `path` is `-`, i.e. standard output.
+pub fn is_stdout(path: &Path) -> bool {
+    path.as_os_str() == "-"
+}
+
+/// Checks that `path` may be (re)written as an output file: it must not exist, or be a
+/// regular file. Directories, devices, FIFOs, sockets and symbolic links are refused
+/// with an error naming what the path is.
+pub fn check_output_target(path: &Path) -> Result<()> {
+    match std::fs::symlink_metadata(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(Error::io(path, e)),
+        Ok(m) if m.file_type().is_file() => Ok(()),
+        Ok(m) => Err(Error::format(
+            path,
+            format!(
+                "is {}; eoir writes outputs only as regular files and never replaces {} (give a new file name{})",
+                super::input::kind_name(&m),
+                if m.file_type().is_symlink() { "a symbolic link" } else { "a special file or directory" },
+                if m.file_type().is_symlink() { " or the link's real target" } else { "" },
+            ),
+        )),
+    }
+}
+
+/// A set of products written together: into a staging directory first, moved into the
+/// output directory by [`ProductSet::commit`] only when all were written, removed (with
+/// the output directory untouched, or removed again if this set created it) when dropped
+/// uncommitted.
+#[derive(Debug)]
+pub struct ProductSet {
+    dir: PathBuf,
+    staging: PathBuf,
+    /// The outermost output directory level [`ProductSet::begin`] created.
+    created: Option<PathBuf>,
+    committed: bool,
+}
+
+impl ProductSet {
+    /// Creates the output directory if needed and a fresh staging directory inside it.
+    pub fn begin(dir: &Path) -> Result<Self> {
+        if let Ok(m) = std::fs::metadata(dir) {
+            if !m.is_dir() {
+                return Err(Error::format(
+                    dir,
+                    format!(
+                        "the output directory is {}, not a directory",
+                        super::input::kind_name(&m)
+                    ),
+                ));
+            }
+        }
+        // The outermost directory this call creates, removed again if nothing is committed.
+        let mut created = None;
+        let mut a = Some(dir);
+        while let Some(d) = a.filter(|d| !d.as_os_str().is_empty() && !d.exists()) {
+            created = Some(d.to_path_buf());
+            a = d.parent();
+        }
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        let n = STAGING_SEQ.fetch_add(1, Ordering::Relaxed);
+        let staging = dir.join(format!("{STAGING_PREFIX}{}-{n}", std::process::id()));
+        // Registered before it exists so a signal right after creation removes it.
+        register_cleanup(&staging);
+        let set = ProductSet {
+            dir: dir.to_path_buf(),
+            staging,
+            created,
+            committed: false,
+        };
+        if let Err(e) = std::fs::create_dir(&set.staging) {
+            return Err(Error::io(&set.staging, e));
+        }
+        Ok(set)
+    }
+
+    /// Where the products are to be written (same relative names as in the output).
+    pub fn staging_dir(&self) -> &Path {
+        &self.staging
+    }
+
+    /// The final output directory.
+    pub fn output_dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The final path of a product written at `staged` inside the staging directory.
+    pub fn final_path(&self, staged: &Path) -> PathBuf {
+        match staged.strip_prefix(&self.staging) {
+            Ok(rel) => self.dir.join(rel),
+            Err(_) => staged.to_path_buf(),
+        }
+    }
+
+    /// Moves every staged file into place and returns their final paths (sorted). All
+    /// targets are checked first ([`check_output_target`]; a staged subdirectory needs a
+    /// directory or nothing at its place), so a refusal moves nothing.
+    pub fn commit(mut self) -> Result<Vec<PathBuf>> {
+        let mut files = Vec::new();
+        let mut dirs = Vec::new();
+        collect(&self.staging, Path::new(""), &mut files, &mut dirs)?;
+        for d in &dirs {
+            let target = self.dir.join(d);
+            if let Ok(m) = std::fs::symlink_metadata(&target) {
+                if !m.is_dir() {
+                    return Err(Error::format(
+                        &target,
+                        format!(
+                            "is {}; a directory of products belongs here",
+                            super::input::kind_name(&m)
+                        ),
+                    ));
+                }
+            }
+        }
+        for f in &files {
+            check_output_target(&self.dir.join(f))?;
+        }
+        // The signal handler waits for this lock: the move completes or never starts.
+        let mut list = cleanup_list();
+        let mut result = Ok(());
+        for d in &dirs {
+            let target = self.dir.join(d);
+            if let Err(e) = std::fs::create_dir_all(&target) {
+                result = Err(Error::io(&target, e));
+                break;
+            }
+        }
+        if result.is_ok() {
+            for f in &files {
+                let target = self.dir.join(f);
+                if let Err(e) = std::fs::rename(self.staging.join(f), &target) {
+                    result = Err(Error::io(&target, e));
+                    break;
+                }
+            }
+        }
+        if let Some(i) = list.iter().rposition(|p| *p == self.staging) {
+            list.swap_remove(i);
+        }
+        let _ = std::fs::remove_dir_all(&self.staging);
+        self.committed = true;
+        drop(list);
+        result?;
+        let mut out: Vec<PathBuf> = files.iter().map(|f| self.dir.join(f)).collect();
+        out.sort();
+        Ok(out)
+    }
+}
+
+impl Drop for ProductSet {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_dir_all(&self.staging);
+            unregister_cleanup(&self.staging);
+            // Directories this set created, innermost first; `remove_dir` only removes
+            // empty ones, so nothing anybody else put there is touched.
+            if let Some(top) = &self.created {
+                let mut d = Some(self.dir.as_path());
+                while let Some(p) = d {
+                    if std::fs::remove_dir(p).is_err() || p == top.as_path() {
+                        break;
+                    }
+                    d = p.parent();
+                }
+            }
+        }
+    }
+}
+
+/// Relative paths of the files and directories under `root/rel` (directories first-level
+/// before their contents). Iterative, so a deep tree cannot exhaust the stack.
+fn collect(
+    root: &Path,
+    rel: &Path,
+    files: &mut Vec<PathBuf>,
+    dirs: &mut Vec<PathBuf>,
+) -> Result<()> {
+    let mut stack = vec![rel.to_path_buf()];
+    while let Some(rel) = stack.pop() {
+        let here = root.join(&rel);
+        let entries = std::fs::read_dir(&here).map_err(|e| Error::io(&here, e))?;
+        for entry in entries {
+            let entry = entry.map_err(|e| Error::io(&here, e))?;
+            let t = entry.file_type().map_err(|e| Error::io(entry.path(), e))?;
+            let r = rel.join(entry.file_name());
+            if t.is_dir() {
+                dirs.push(r.clone());
+                stack.push(r);
+            } else if entry.file_name().to_string_lossy().contains(TEMP_MARKER) {
+                // A temporary file a failed writer could not remove: never publish it.
+                continue;
+            } else {
+                files.push(r);
+            }
+        }
+    }
+    Ok(())
+}

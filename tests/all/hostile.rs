@@ -1,0 +1,787 @@
+//! Hostile input and failure safety (issue 11): every case runs the `eoir` binary as a
+//! child with its address space limited to 4 GiB and a hang detector, and must end in one
+//! clear error line (or success where the input is valid) — no panic, no abort, no hang —
+//! with the working directory exactly as it was (no file left behind, none replaced).
+
+use std::collections::BTreeMap;
+use std::ffi::OsString;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Address-space limit for each child, KiB (4 GiB).
+const AS_LIMIT_KIB: u64 = 4 << 20;
+/// A child still running after this long is a hang (generous: the machine is shared).
+const HANG_AFTER: Duration = Duration::from_secs(60);
+
+#[derive(Debug)]
+struct Outcome {
+    code: Option<i32>,
+    stdout: String,
+    stderr: String,
+}
+
+fn spawn_limited(dir: &Path, args: &[OsString]) -> Child {
+    Command::new("bash")
+        .arg("-c")
+        .arg(format!("ulimit -v {AS_LIMIT_KIB} && exec \"$0\" \"$@\""))
+        .arg(env!("CARGO_BIN_EXE_eoir"))
+        .args(args)
+        .current_dir(dir)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawning eoir")
+}
+
+fn finish(mut child: Child, what: &str) -> Outcome {
+    let mut out = child.stdout.take().unwrap();
+    let mut err = child.stderr.take().unwrap();
+    let t_out = std::thread::spawn(move || {
+        let mut s = Vec::new();
+        let _ = out.read_to_end(&mut s);
+        s
+    });
+    let t_err = std::thread::spawn(move || {
+        let mut s = Vec::new();
+        let _ = err.read_to_end(&mut s);
+        s
+    });
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if start.elapsed() > HANG_AFTER {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("{what}: hangs (still running after {HANG_AFTER:?})");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    Outcome {
+        code: status.code(),
+        stdout: String::from_utf8_lossy(&t_out.join().unwrap()).into_owned(),
+        stderr: String::from_utf8_lossy(&t_err.join().unwrap()).into_owned(),
+    }
+}
+
+fn eoir(dir: &Path, args: &[&str]) -> Outcome {
+    let args: Vec<OsString> = args.iter().map(OsString::from).collect();
+    finish(spawn_limited(dir, &args), &args_text(&args))
+}
+
+fn args_text(args: &[OsString]) -> String {
+    args.iter()
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Every file system entry under `dir`: relative path → (kind, size, content hash for
+/// regular files up to 1 MiB, modification time for larger ones). Symlinks are not followed.
+fn listing(dir: &Path) -> BTreeMap<PathBuf, (String, u64, u64)> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let e = e.unwrap();
+            let m = std::fs::symlink_metadata(e.path()).unwrap();
+            let rel = e.path().strip_prefix(dir).unwrap().to_path_buf();
+            let t = m.file_type();
+            let (kind, hash) = if t.is_symlink() {
+                (
+                    format!("link→{}", std::fs::read_link(e.path()).unwrap().display()),
+                    0,
+                )
+            } else if t.is_dir() {
+                stack.push(e.path());
+                ("dir".into(), 0)
+            } else if t.is_file() && m.len() <= 1 << 20 {
+                ("file".into(), fnv(&std::fs::read(e.path()).unwrap()))
+            } else if t.is_file() {
+                // Large (sparse) fixtures: size and modification time stand for content.
+                let mtime = m.modified().unwrap();
+                let ns = mtime
+                    .duration_since(std::time::UNIX_EPOCH)
+                    .unwrap()
+                    .as_nanos();
+                ("file".into(), ns as u64)
+            } else {
+                (format!("special {:?}", t), 0)
+            };
+            out.insert(rel, (kind, if t.is_file() { m.len() } else { 0 }, hash));
+        }
+    }
+    out
+}
+
+/// FNV-1a, to compare file contents.
+fn fnv(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+        (h ^ *b as u64).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
+/// Asserts one clear error: exit status 1 (not a panic's 101 or a signal), exactly one
+/// `error:` line on stderr containing every `needles` (case-insensitive), nothing that
+/// looks like a panic or an abort, no control characters.
+fn assert_one_error(o: &Outcome, what: &str, needles: &[&str]) {
+    assert_eq!(o.code, Some(1), "{what}: exit {:?}\n{}", o.code, o.stderr);
+    let errors: Vec<&str> = o
+        .stderr
+        .lines()
+        .filter(|l| l.starts_with("error:"))
+        .collect();
+    assert_eq!(errors.len(), 1, "{what}: stderr:\n{}", o.stderr);
+    for l in o.stderr.lines() {
+        assert!(
+            l.starts_with("error:") || l.starts_with("warning:"),
+            "{what}: unexpected stderr line {l:?}"
+        );
+    }
+    assert!(!o.stderr.contains("panicked"), "{what}: {}", o.stderr);
+    assert!(
+        !o.stderr.chars().any(|c| c.is_control() && c != '\n'),
+        "{what}: control characters in {:?}",
+        o.stderr
+    );
+    let lower = errors[0].to_lowercase();
+    for n in needles {
+        assert!(
+            lower.contains(&n.to_lowercase()),
+            "{what}: error does not mention {n:?}: {}",
+            errors[0]
+        );
+    }
+}
+
+/// Runs `args` in `dir` expecting one error and the directory unchanged.
+fn refused(dir: &Path, args: &[&str], needles: &[&str]) -> Outcome {
+    let before = listing(dir);
+    let o = eoir(dir, args);
+    let what = args.join(" ");
+    assert_one_error(&o, &what, needles);
+    assert_eq!(listing(dir), before, "{what}: the directory changed");
+    o
+}
+
+/// The run arguments for the small fixture scene (16 × 16, multimir band).
+fn run_args<'a>(input: &'a str, out: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
+    let mut v = vec![
+        "run",
+        "--sensor",
+        "multimir",
+        "--quiet",
+        "--set",
+        "detector.rows=16",
+        "--set",
+        "detector.cols=16",
+        input,
+        "-o",
+        out,
+    ];
+    v.extend_from_slice(extra);
+    v
+}
+
+/// Writes the fixture scene `s.hdr` (+ `s.img`) into `dir`: a 300 K blackbody, 16 × 16,
+/// 4.4–5.4 µm in 11 bands, field of view matching a 16 × 16 multimir crop.
+fn fixture_scene(dir: &Path) {
+    let fov = (16.0 * 0.24e-3f64).to_degrees().to_string();
+    let o = eoir(
+        dir,
+        &[
+            "scene",
+            "blackbody",
+            "--rows",
+            "16",
+            "--cols",
+            "16",
+            "--lo-um",
+            "4.4",
+            "--hi-um",
+            "5.4",
+            "--bands",
+            "11",
+            "--fov-deg",
+            &fov,
+            "-o",
+            "s.hdr",
+        ],
+    );
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+}
+
+/// A hand-written ENVI header (f32, BSQ) with the given size and FOV 0.23°.
+fn envi_header(samples: u64, lines: u64, bands: usize) -> String {
+    let wl: Vec<String> = (0..bands)
+        .map(|i| format!("{:.3}", 4.4 + i as f64 * 0.1))
+        .collect();
+    format!(
+        "ENVI\nsamples = {samples}\nlines = {lines}\nbands = {bands}\nheader offset = 0\nfile type = ENVI Standard\ndata type = 4\ninterleave = bsq\nbyte order = 0\nwavelength units = Micrometers\nwavelength = {{{}}}\neoir radiance units = W m-2 sr-1 um-1\neoir fov deg = {{0.23, 0.23}}\n",
+        wl.join(", ")
+    )
+}
+
+fn mkfifo(path: &Path) {
+    let c = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).unwrap();
+    // SAFETY: plain libc call with a valid NUL-terminated path.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o644) }, 0, "mkfifo");
+}
+
+/// The resolved multimir sensor file with section `[name]` replaced by `body`.
+fn sensor_with(dir: &Path, name: &str, body: &str) -> String {
+    let o = eoir(dir, &["sensors", "show", "multimir"]);
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    let text = o.stdout;
+    let head = format!("[{name}]\n");
+    let start = text.find(&head).unwrap_or_else(|| panic!("no [{name}]"));
+    let after = start + head.len();
+    let end = text[after..]
+        .find("\n[")
+        .map_or(text.len(), |i| after + i + 1);
+    format!("{}{head}{body}\n{}", &text[..start], &text[end..])
+}
+
+#[test]
+fn huge_sizes_from_the_command_line_are_refused_before_allocating() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    fixture_scene(d);
+    for (extra, needles) in [
+        (
+            &["--frames", "18446744073709551615"][..],
+            &["overflows", "frames"][..],
+        ),
+        (
+            &["--frames", "100000000"],
+            &["memory limit", "100000000 frame"],
+        ),
+        (&["--frames", "0"], &["--frames 0"]),
+        (&["--nuc-degree", "1000000000"], &["--nuc-degree", "0 to 8"]),
+        (&["--nuc-degree", "9"], &["0 to 8"]),
+        (
+            &["--max-memory", "1M", "--frames", "10000"],
+            &["memory limit"],
+        ),
+        (&["--max-memory", "lots"], &["max-memory", "lots"]),
+    ] {
+        refused(d, &run_args("s.hdr", "out", extra), needles);
+    }
+    refused(
+        d,
+        &["mtf", "--sensor", "multimir", "--points", "10000000000"],
+        &["--points", "memory limit"],
+    );
+    refused(
+        d,
+        &[
+            "mtf",
+            "--sensor",
+            "multimir",
+            "--set",
+            "detector.rows=4000000000",
+            "--set",
+            "detector.cols=4000000000",
+        ],
+        &["detector", "memory limit"],
+    );
+    // Valid: a sequence of 3 frames still runs.
+    let o = eoir(d, &run_args("s.hdr", "seq", &["--frames", "3"]));
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    assert!(d.join("seq/frame_0002_dn.tiff").is_file());
+}
+
+#[test]
+fn huge_sizes_from_file_headers_are_refused_before_allocating() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // ENVI: 2·10⁹ samples with a matching sparse data file (8 GB, no blocks on disk).
+    std::fs::write(d.join("wide.hdr"), envi_header(2_000_000_000, 1, 1)).unwrap();
+    let f = std::fs::File::create(d.join("wide.img")).unwrap();
+    f.set_len(8_000_000_000).unwrap();
+    drop(f);
+    refused(
+        d,
+        &run_args("wide.hdr", "out", &[]),
+        &["wide.hdr", "memory limit"],
+    );
+
+    // ENVI: a size whose product overflows 64 bits.
+    std::fs::write(d.join("ovf.hdr"), envi_header(1 << 40, 1 << 40, 1)).unwrap();
+    std::fs::write(d.join("ovf.img"), [0u8; 16]).unwrap();
+    refused(d, &run_args("ovf.hdr", "out", &[]), &["ovf"]);
+
+    // NPY: a 35 KB header whose shape tuple nests 17,000 deep.
+    let mut header = String::from("{'descr': '<f4', 'fortran_order': False, 'shape': ");
+    header.push_str(&"(".repeat(17_000));
+    header.push_str(&")".repeat(17_000));
+    header.push_str(", }");
+    std::fs::write(d.join("deep.npy"), npy_bytes(&header, &[])).unwrap();
+    std::fs::write(d.join("deep.json"), "{\"wavelength_um\": [4.8]}").unwrap();
+    refused(d, &run_args("deep.npy", "out", &[]), &["nesting deeper"]);
+
+    // NPY: shape 2³¹ × 2³¹ × 2³¹ on a 16-byte payload.
+    let header =
+        "{'descr': '<f4', 'fortran_order': False, 'shape': (2147483648, 2147483648, 2147483648), }";
+    std::fs::write(d.join("big.npy"), npy_bytes(header, &[0u8; 16])).unwrap();
+    std::fs::write(d.join("big.json"), "{\"wavelength_um\": [4.8]}").unwrap();
+    refused(d, &run_args("big.npy", "out", &[]), &["big.npy"]);
+
+    // TIFF: a 4 × 4 file whose header claims 2³¹ × 2³¹ pixels.
+    std::fs::write(d.join("big.tiff"), tiff_claiming(1 << 31, 1 << 31)).unwrap();
+    refused(
+        d,
+        &[
+            "temperature",
+            "--sensor",
+            "multimir",
+            "big.tiff",
+            "-o",
+            "out",
+        ],
+        &["big.tiff"],
+    );
+
+    // EXR: a valid file whose data window is patched to 2³⁰ × 2³⁰.
+    let fov = (16.0 * 0.24e-3f64).to_degrees().to_string();
+    let o = eoir(
+        d,
+        &[
+            "scene",
+            "blackbody",
+            "--rows",
+            "16",
+            "--cols",
+            "16",
+            "--lo-um",
+            "4.4",
+            "--hi-um",
+            "5.4",
+            "--bands",
+            "5",
+            "--fov-deg",
+            &fov,
+            "-o",
+            "e.exr",
+        ],
+    );
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    let mut bytes = std::fs::read(d.join("e.exr")).unwrap();
+    let key = b"dataWindow\0box2i\0";
+    let at = bytes
+        .windows(key.len())
+        .position(|w| w == key)
+        .expect("dataWindow attribute")
+        + key.len()
+        + 4;
+    bytes[at + 8..at + 12].copy_from_slice(&(1i32 << 30).to_le_bytes());
+    bytes[at + 12..at + 16].copy_from_slice(&(1i32 << 30).to_le_bytes());
+    std::fs::write(d.join("huge.exr"), bytes).unwrap();
+    refused(d, &run_args("huge.exr", "out", &[]), &["huge.exr"]);
+}
+
+/// An NPY v1 file with `header` (padded to a multiple of 64) and `payload`.
+fn npy_bytes(header: &str, payload: &[u8]) -> Vec<u8> {
+    let mut h = header.as_bytes().to_vec();
+    while (10 + h.len() + 1) % 64 != 0 {
+        h.push(b' ');
+    }
+    h.push(b'\n');
+    let mut out = b"\x93NUMPY\x01\x00".to_vec();
+    out.extend_from_slice(&(h.len() as u16).to_le_bytes());
+    out.extend_from_slice(&h);
+    out.extend_from_slice(payload);
+    out
+}
+
+/// A little-endian baseline TIFF with 32 bytes of 16-bit grey data whose IFD claims
+/// `width × height` pixels in one strip.
+fn tiff_claiming(width: u32, height: u32) -> Vec<u8> {
+    let mut out = b"II*\0".to_vec();
+    out.extend_from_slice(&8u32.to_le_bytes());
+    // (tag, type, count, value); type 3 = SHORT, 4 = LONG.
+    let entries: [(u16, u16, u32, u32); 9] = [
+        (256, 4, 1, width),
+        (257, 4, 1, height),
+        (258, 3, 1, 16),
+        (259, 3, 1, 1),
+        (262, 3, 1, 1),
+        (273, 4, 1, 8 + 2 + 9 * 12 + 4),
+        (277, 3, 1, 1),
+        (278, 4, 1, height),
+        (279, 4, 1, 32),
+    ];
+    out.extend_from_slice(&(entries.len() as u16).to_le_bytes());
+    for (tag, ty, count, value) in entries {
+        out.extend_from_slice(&tag.to_le_bytes());
+        out.extend_from_slice(&ty.to_le_bytes());
+        out.extend_from_slice(&count.to_le_bytes());
+        out.extend_from_slice(&value.to_le_bytes());
+    }
+    out.extend_from_slice(&0u32.to_le_bytes());
+    out.extend_from_slice(&[0u8; 32]);
+    out
+}
+
+#[test]
+fn special_files_as_inputs_are_refused_without_blocking() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    fixture_scene(d);
+    // A FIFO as the cube.
+    mkfifo(&d.join("pipe.npy"));
+    std::fs::write(d.join("pipe.json"), "{\"wavelength_um\": [4.8]}").unwrap();
+    refused(d, &run_args("pipe.npy", "out", &[]), &["pipe.npy", "FIFO"]);
+    // A FIFO as a sensor-file table (a CSV spectrum).
+    mkfifo(&d.join("filter.csv"));
+    let toml = sensor_with(d, "filter", "kind = \"csv\"\npath = \"filter.csv\"");
+    std::fs::write(d.join("fifo-sensor.toml"), toml).unwrap();
+    refused(
+        d,
+        &["mtf", "--sensor", "fifo-sensor.toml"],
+        &["filter.csv", "FIFO"],
+    );
+    // A directory as the cube, and a device as the ENVI data file.
+    std::fs::create_dir(d.join("dir.npy")).unwrap();
+    refused(d, &run_args("dir.npy", "out", &[]), &["directory"]);
+    std::fs::write(d.join("zero.hdr"), envi_header(16, 16, 11)).unwrap();
+    std::os::unix::fs::symlink("/dev/zero", d.join("zero.img")).unwrap();
+    refused(d, &run_args("zero.hdr", "out", &[]), &["zero"]);
+}
+
+#[test]
+fn private_files_are_not_echoed_and_relative_paths_follow_the_sensor_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let secret = "root:$6$SECRETSECRETSECRETSECRETSECRETSECRETSECRET_TAIL_MUST_NOT_APPEAR:19000:0:99999:7:::";
+    std::fs::write(d.join("shadow"), format!("{secret}\n{secret}\n")).unwrap();
+    let toml = sensor_with(d, "filter", "kind = \"csv\"\npath = \"shadow\"");
+    std::fs::write(d.join("s.toml"), toml).unwrap();
+    let o = refused(d, &["mtf", "--sensor", "s.toml"], &["shadow", "line"]);
+    assert!(!o.stderr.contains("TAIL_MUST_NOT_APPEAR"), "{}", o.stderr);
+
+    // A TOML syntax error on a long line quotes at most a short escaped token of it.
+    let mut bad = sensor_with(
+        d,
+        "filter",
+        "kind = \"top_hat\"\nlo_um = 4.55\nhi_um = 5.2\nedge_width_um = 0.05\npeak = 0.85",
+    );
+    bad.push_str(&format!("\n[x]\n{secret} = \n"));
+    std::fs::write(d.join("bad.toml"), bad).unwrap();
+    let o = refused(d, &["mtf", "--sensor", "bad.toml"], &["bad.toml"]);
+    assert!(!o.stderr.contains("TAIL_MUST_NOT_APPEAR"), "{}", o.stderr);
+
+    // Relative table paths resolve against the sensor file's directory, not the cwd.
+    std::fs::create_dir(d.join("sub")).unwrap();
+    std::fs::write(
+        d.join("sub/filter.csv"),
+        "wavelength_um,value\n4.0,0\n4.5,0.8\n5.0,0.8\n5.5,0\n",
+    )
+    .unwrap();
+    let toml = sensor_with(d, "filter", "kind = \"csv\"\npath = \"filter.csv\"");
+    std::fs::write(d.join("sub/rel.toml"), toml).unwrap();
+    let o = eoir(d, &["mtf", "--sensor", "sub/rel.toml"]);
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+
+    // Binary junk in an ENVI header is escaped, never echoed raw.
+    let mut h = envi_header(16, 16, 11);
+    h = h.replace("interleave = bsq", "interleave = \u{1b}[31mbsq\u{7}");
+    std::fs::write(d.join("esc.hdr"), h).unwrap();
+    std::fs::write(d.join("esc.img"), vec![0u8; 16 * 16 * 11 * 4]).unwrap();
+    refused(d, &run_args("esc.hdr", "out", &[]), &["esc.hdr"]);
+}
+
+#[test]
+fn special_files_and_links_as_outputs_are_never_replaced() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mtf = |target: &str| -> Vec<String> {
+        ["mtf", "--sensor", "multimir", "--csv", target]
+            .iter()
+            .map(|s| s.to_string())
+            .collect()
+    };
+    mkfifo(&d.join("fifo.csv"));
+    let a = mtf("fifo.csv");
+    refused(
+        d,
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        &["FIFO"],
+    );
+
+    std::fs::write(d.join("target.csv"), "old\n").unwrap();
+    std::os::unix::fs::symlink("target.csv", d.join("link.csv")).unwrap();
+    let a = mtf("link.csv");
+    refused(
+        d,
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        &["symbolic link"],
+    );
+
+    let sock = std::os::unix::net::UnixListener::bind(d.join("sock.csv")).unwrap();
+    let a = mtf("sock.csv");
+    refused(
+        d,
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        &["socket"],
+    );
+    drop(sock);
+
+    // A character device (made here, never the system's /dev/null) when we may mknod.
+    let dev = d.join("null.csv");
+    let c = std::ffi::CString::new(dev.as_os_str().as_encoded_bytes()).unwrap();
+    // SAFETY: plain libc call; makedev(1, 3) is the null device's number.
+    let made = unsafe { libc::mknod(c.as_ptr(), libc::S_IFCHR | 0o666, libc::makedev(1, 3)) } == 0;
+    if made {
+        let a = mtf("null.csv");
+        refused(
+            d,
+            &a.iter().map(String::as_str).collect::<Vec<_>>(),
+            &["character device"],
+        );
+    }
+
+    // A product name inside the output directory taken by a FIFO: nothing is written.
+    fixture_scene(d);
+    std::fs::create_dir(d.join("out")).unwrap();
+    mkfifo(&d.join("out/dn.tiff"));
+    refused(d, &run_args("s.hdr", "out", &[]), &["dn.tiff", "FIFO"]);
+    // The output directory is a regular file.
+    std::fs::write(d.join("plain"), "x").unwrap();
+    refused(
+        d,
+        &run_args("s.hdr", "plain", &[]),
+        &["plain", "not a directory"],
+    );
+
+    // `-` is standard output for the CSV.
+    let before = listing(d);
+    let o = eoir(d, &mtf("-").iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    assert!(o.stdout.starts_with("freq_cy_per_mrad,"), "{}", o.stdout);
+    assert!(o.stdout.lines().count() > 100);
+    assert_eq!(listing(d), before);
+}
+
+#[test]
+fn non_finite_and_impossible_values_are_errors_naming_the_setting() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    fixture_scene(d);
+    // Radiance 3e38 W m-2 sr-1 µm-1 (a finite f32) overflows the electron count.
+    let n = 16 * 16 * 11;
+    let data: Vec<u8> = (0..n).flat_map(|_| 3.0e38f32.to_le_bytes()).collect();
+    std::fs::write(d.join("hot.hdr"), envi_header(16, 16, 11)).unwrap();
+    std::fs::write(d.join("hot.img"), data).unwrap();
+    refused(
+        d,
+        &run_args("hot.hdr", "out", &[]),
+        &["hot.hdr", "overflowed"],
+    );
+    // QE 3.4e38 and QE 7.0, a transmission of 1.5.
+    for (name, body, field) in [
+        (
+            "qe-huge.toml",
+            "kind = \"ideal_qe\"\npeak = 3.4e38\ncutoff_um = 5.4",
+            "detector.quantum_efficiency",
+        ),
+        (
+            "qe-7.toml",
+            "kind = \"table\"\nwavelength_um = [4.0, 5.5]\nvalue = [7.0, 7.0]",
+            "detector.quantum_efficiency",
+        ),
+    ] {
+        std::fs::write(
+            d.join(name),
+            sensor_with(d, "detector.quantum_efficiency", body),
+        )
+        .unwrap();
+        let mut args = run_args("s.hdr", "out", &[]);
+        args[2] = name;
+        refused(d, &args, &[field]);
+    }
+    std::fs::write(
+        d.join("tau.toml"),
+        sensor_with(d, "optics.transmission", "kind = \"constant\"\nvalue = 1.5"),
+    )
+    .unwrap();
+    let mut args = run_args("s.hdr", "out", &[]);
+    args[2] = "tau.toml";
+    refused(d, &args, &["optics.transmission"]);
+    // Field of view inf or ≥ 180°, or ≤ 0.
+    for fov in ["inf,inf", "200,4", "0,4", "nan,1"] {
+        refused(
+            d,
+            &run_args("s.hdr", "out", &["--fov-deg", fov]),
+            &["--fov-deg", "(0, 180)"],
+        );
+    }
+    // bits = 1: a thermal sensor cannot calibrate with 2 DN levels (clear message) …
+    refused(
+        d,
+        &run_args("s.hdr", "out", &["--set", "detector.bits=1"]),
+        &["detector.bits = 1", "more ADC bits"],
+    );
+    // … and DN-only products are still made with 1 bit by a visible camera.
+    let o = eoir(
+        d,
+        &[
+            "scene",
+            "blackbody",
+            "--rows",
+            "16",
+            "--cols",
+            "16",
+            "--lo-um",
+            "0.4",
+            "--hi-um",
+            "1.0",
+            "--bands",
+            "13",
+            "--fov-deg",
+            "0.2",
+            "--temperature-k",
+            "5800",
+            "-o",
+            "vis.hdr",
+        ],
+    );
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    let o = eoir(
+        d,
+        &[
+            "run",
+            "--sensor",
+            "ccd",
+            "--quiet",
+            "--set",
+            "detector.rows=4",
+            "--set",
+            "detector.cols=4",
+            "--set",
+            "detector.bits=1",
+            "--fov-deg",
+            "0.2,0.2",
+            "vis.hdr",
+            "-o",
+            "vis-out",
+        ],
+    );
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    let dn = std::fs::read(d.join("vis-out/dn.tiff")).unwrap();
+    assert!(!dn.is_empty());
+}
+
+/// Snapshot of a product directory: file name → content hash (report.json excluded when
+/// `skip_report`, since it holds timings).
+fn products(dir: &Path, skip_report: bool) -> BTreeMap<String, u64> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap())
+        .filter(|e| !(skip_report && e.file_name() == "report.json"))
+        .map(|e| {
+            (
+                e.file_name().to_string_lossy().into_owned(),
+                fnv(&std::fs::read(e.path()).unwrap_or_default()),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn sigint_while_writing_a_sequence_leaves_the_old_set_or_the_complete_new_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    fixture_scene(d);
+    let frames = "150";
+    let seq = |out: &str, seed: &str| -> Vec<OsString> {
+        run_args("s.hdr", out, &["--frames", frames, "--seed", seed])
+            .iter()
+            .map(OsString::from)
+            .collect()
+    };
+    let o = finish(spawn_limited(d, &seq("out", "1")), "old run");
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    let o = finish(spawn_limited(d, &seq("reference", "2")), "reference run");
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    let mut old = products(&d.join("out"), false);
+    let new = products(&d.join("reference"), true);
+    assert_eq!(
+        old.len(),
+        150 * 8 + 7,
+        "{:?}",
+        old.keys().take(5).collect::<Vec<_>>()
+    );
+
+    // Signal once the staging directory holds k files (k differs per attempt) or, for the
+    // last attempt, as late as possible (when the staging directory disappears: the move).
+    let mut interrupted = 0;
+    for (attempt, signal) in [
+        (1usize, libc::SIGINT),
+        (400, libc::SIGTERM),
+        (1100, libc::SIGINT),
+    ] {
+        let child = spawn_limited(d, &seq("out", "2"));
+        let pid = child.id() as i32;
+        let start = Instant::now();
+        loop {
+            let staged: usize = std::fs::read_dir(d.join("out"))
+                .unwrap()
+                .filter_map(|e| e.ok())
+                .filter(|e| {
+                    e.file_name()
+                        .to_string_lossy()
+                        .starts_with(".eoir-staging-")
+                })
+                .map(|e| std::fs::read_dir(e.path()).map_or(0, |r| r.count()))
+                .sum();
+            if staged >= attempt || start.elapsed() > HANG_AFTER {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        // SAFETY: signalling our own child by its pid.
+        unsafe { libc::kill(pid, signal) };
+        let o = finish(child, "interrupted run");
+        assert!(!o.stderr.contains("panicked"), "{}", o.stderr);
+        let after = listing(&d.join("out"));
+        for name in after.keys() {
+            let n = name.to_string_lossy();
+            assert!(
+                !n.contains(".eoir-staging-") && !n.contains(".eoir-tmp-"),
+                "attempt {attempt}: left behind {n}"
+            );
+        }
+        match o.code {
+            Some(c) if c == 128 + signal => {
+                interrupted += 1;
+                assert_eq!(
+                    products(&d.join("out"), false),
+                    old,
+                    "attempt {attempt}: interrupted, but the old set changed"
+                );
+            }
+            Some(0) => {
+                // Finished (signal came after the move): the complete new set.
+                assert_eq!(products(&d.join("out"), true), new);
+                // Restore the old set for the next attempt.
+                std::fs::remove_dir_all(d.join("out")).unwrap();
+                let o = finish(spawn_limited(d, &seq("out", "1")), "old run again");
+                assert_eq!(o.code, Some(0), "{}", o.stderr);
+                let again = products(&d.join("out"), false);
+                let mut a = again.clone();
+                let mut b = old.clone();
+                a.remove("report.json");
+                b.remove("report.json");
+                assert_eq!(a, b, "the seed-1 run is not reproducible");
+                old = again;
+            }
+            other => panic!("attempt {attempt}: exit {other:?}: {}", o.stderr),
+        }
+    }
+    assert!(interrupted >= 1, "no attempt was interrupted while writing");
+}
