@@ -31,7 +31,7 @@ pub struct Stretch {
 
 impl Stretch {
     /// The stretch between the `lo_percent` and `hi_percent` percentiles of the finite
-    /// values (nearest-rank on the sorted values). `None` if there is no finite value.
+    /// values ([`percentile_sorted`]: linear interpolation between ranks). `None` if there is no finite value.
     /// A constant image gets `hi = lo + 1` so that it shows as black rather than dividing
     /// by zero.
     pub fn from_percentiles(
@@ -262,9 +262,48 @@ fn draw_bar_labels(
 
 pub use crate::io::raster::{encode_png, write_png_bytes};
 
+/// Standard base64 (RFC 4648 §4, with `=` padding) of `bytes`: how pictures are inlined
+/// as `data:` URIs (RFC 2397) in the self-contained HTML pages.
+pub fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            chunk.get(1).copied().unwrap_or(0),
+            chunk.get(2).copied().unwrap_or(0),
+        ];
+        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        for i in 0..4 {
+            if i <= chunk.len() {
+                out.push(ALPHABET[((n >> (18 - 6 * i)) & 63) as usize] as char);
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn base64_matches_rfc4648_vectors() {
+        // RFC 4648 §10 test vectors.
+        for (input, expected) in [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foob", "Zm9vYg=="),
+            ("fooba", "Zm9vYmE="),
+            ("foobar", "Zm9vYmFy"),
+        ] {
+            assert_eq!(base64(input.as_bytes()), expected, "{input}");
+        }
+    }
 
     #[test]
     fn percentile_matches_linear_interpolation() {

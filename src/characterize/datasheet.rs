@@ -6,31 +6,10 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::analysis::Characterization;
+use crate::display::base64;
 use crate::error::{Error, Result};
 use crate::io::{atomic_write, write_all};
 use crate::plot::{write_line_plot, LinePlot, Series};
-
-/// Base64 (RFC 4648 §4, standard alphabet, `=` padding) of `bytes`.
-pub fn base64(bytes: &[u8]) -> String {
-    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
-    for chunk in bytes.chunks(3) {
-        let b = [
-            chunk[0],
-            *chunk.get(1).unwrap_or(&0),
-            *chunk.get(2).unwrap_or(&0),
-        ];
-        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
-        for i in 0..4 {
-            if i <= chunk.len() {
-                out.push(A[((n >> (18 - 6 * i)) & 63) as usize] as char);
-            } else {
-                out.push('=');
-            }
-        }
-    }
-    out
-}
 
 /// Writes `OUT/characterization.json`, `OUT/ptc.png`, `OUT/snr.png` and
 /// `OUT/characterization.html` (each file atomically; the directory is created).

@@ -7,6 +7,7 @@ use anyhow::{bail, Context, Result};
 use ndarray::Array2;
 use serde_json::json;
 
+use eoir::display;
 use eoir::io::raster;
 use eoir::processing::wiener::{
     self, replace_invalid_pixels, NoiseRule, SensorTransfer, IMPULSE_K_SIGMA,
@@ -130,21 +131,16 @@ fn stats(a: &Array2<f64>) -> serde_json::Value {
     json!({ "mean": mean, "std": var.sqrt(), "min": lo, "max": hi })
 }
 
-/// An 8-bit grey display image stretched between the 0.5th and 99.5th percentiles.
-pub fn display_stretch(a: &Array2<f64>) -> ndarray::Array3<u8> {
-    let mut v: Vec<f64> = a.iter().copied().filter(|x| x.is_finite()).collect();
-    v.sort_by(f64::total_cmp);
-    let pick = |q: f64| {
-        v.get(((v.len().max(1) - 1) as f64 * q).round() as usize)
-            .copied()
-            .unwrap_or(0.0)
-    };
-    let (lo, hi) = (pick(0.005), pick(0.995));
-    let span = if hi > lo { hi - lo } else { 1.0 };
-    let (rows, cols) = a.dim();
-    ndarray::Array3::from_shape_fn((rows, cols, 3), |(r, c, _)| {
-        ((a[[r, c]] - lo) / span * 255.0).round().clamp(0.0, 255.0) as u8
-    })
+/// An 8-bit grey display image with the same percentile stretch as `dn.png`
+/// ([`display::DN_STRETCH_LO_PERCENT`]–[`display::DN_STRETCH_HI_PERCENT`]).
+fn display_stretch(a: &Array2<f64>) -> ndarray::Array2<u8> {
+    let stretch = display::Stretch::from_percentiles(
+        a.iter().copied(),
+        display::DN_STRETCH_LO_PERCENT,
+        display::DN_STRETCH_HI_PERCENT,
+    )
+    .unwrap_or(display::Stretch { lo: 0.0, hi: 1.0 });
+    a.mapv(|v| stretch.to_u8(v))
 }
 
 /// `eoir restore`.
@@ -243,7 +239,10 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
     let tiff = args.output.join("restored.tiff");
     raster::write_tiff_f32(&tiff, restored.mapv(|v| v as f32).view())?;
     let png = args.output.join("restored.png");
-    raster::write_png_rgb8(&png, display_stretch(&restored).view())?;
+    let grey = display_stretch(&restored);
+    let samples: Vec<u8> = grey.iter().copied().collect();
+    let bytes = display::encode_png(cols, rows, 1, &samples)?;
+    display::write_png_bytes(&png, &bytes)?;
     let json_path = args.output.join("restore.json");
     let text = serde_json::to_string_pretty(&report)?;
     eoir::io::atomic_write(&json_path, |w| {

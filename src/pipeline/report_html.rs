@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use serde_json::Value;
 
 use super::RunOutput;
-use crate::display::{self, Stretch};
+use crate::display::{self, base64, Stretch};
 use crate::error::{Error, Result};
 use crate::plot::{self, HistogramPlot, Marker};
 use crate::report::MtfCurves;
@@ -183,28 +183,6 @@ fn dn_histogram(out: &RunOutput, stretch: &Stretch) -> Result<Picture> {
             if full_scale <= hi { " and ADC full scale" } else { "" }
         ),
     })
-}
-
-/// Standard base64 (RFC 4648 §4, with `=` padding) of `bytes`.
-pub fn base64(bytes: &[u8]) -> String {
-    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
-    for chunk in bytes.chunks(3) {
-        let b = [
-            chunk[0],
-            chunk.get(1).copied().unwrap_or(0),
-            chunk.get(2).copied().unwrap_or(0),
-        ];
-        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
-        for i in 0..4 {
-            if i <= chunk.len() {
-                out.push(ALPHABET[((n >> (18 - 6 * i)) & 63) as usize] as char);
-            } else {
-                out.push('=');
-            }
-        }
-    }
-    out
 }
 
 /// `text` with the five HTML-special characters escaped.
@@ -618,22 +596,6 @@ figcaption{font-size:13px;color:#445;margin-top:6px}footer{font-size:12px;color:
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn base64_matches_rfc4648_vectors() {
-        // RFC 4648 §10 test vectors.
-        for (input, expected) in [
-            ("", ""),
-            ("f", "Zg=="),
-            ("fo", "Zm8="),
-            ("foo", "Zm9v"),
-            ("foob", "Zm9vYg=="),
-            ("fooba", "Zm9vYmE="),
-            ("foobar", "Zm9vYmFy"),
-        ] {
-            assert_eq!(base64(input.as_bytes()), expected, "{input}");
-        }
-    }
 
     #[test]
     fn html_is_escaped() {

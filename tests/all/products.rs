@@ -110,7 +110,7 @@ fn thermal_demo_writes_colour_temperature_histogram_and_self_contained_page() {
     }
     // The inline DN picture is byte-for-byte dn.png.
     let dn_png = std::fs::read(dir.path().join("dn.png")).unwrap();
-    assert!(html.contains(&eoir::pipeline::report_html::base64(&dn_png)));
+    assert!(html.contains(&eoir::display::base64(&dn_png)));
     // Key numbers as report.json has them.
     let netd_mk = report["calibration"]["netd_analytic_k_at_300k"]
         .as_f64()
