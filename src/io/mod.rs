@@ -52,6 +52,13 @@ pub trait CubeReader {
     /// Reads band `band` of frame `frame` as `[row, col]`, in the cube's units, after
     /// checking every value is finite and non-negative.
     fn read_band(&mut self, frame: usize, band: usize) -> Result<Array2<f32>>;
+    /// Reads several bands of frame `frame` (in the order given), each checked as
+    /// [`CubeReader::read_band`] checks it. Interleaved formats (BIL, BIP) override this to
+    /// read the frame in one pass instead of one strided pass per band; the default reads
+    /// band by band. Callers bound memory by asking for a few bands at a time.
+    fn read_bands(&mut self, frame: usize, bands: &[usize]) -> Result<Vec<Array2<f32>>> {
+        bands.iter().map(|&b| self.read_band(frame, b)).collect()
+    }
     /// Things the reader assumed or worked around that the user should know about
     /// (e.g. a unit the file did not state). Empty when the file was unambiguous.
     fn warnings(&self) -> Vec<String> {
