@@ -34,6 +34,7 @@ pub mod metadata;
 pub mod npy;
 pub mod output;
 pub mod raster;
+pub(crate) mod spill;
 
 pub use metadata::ReadOptions;
 

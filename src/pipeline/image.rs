@@ -53,6 +53,45 @@ impl ImagingStage {
             .sum()
     }
 
+    /// The input bands no colour channel uses (zero spectral weight), as one warning:
+    /// the engine never reads them, so they are not checked for NaN, ±Inf or negative
+    /// radiance (README, "Input"). `None` when every band is read.
+    pub fn unread_bands_warning(&self, meta: &CubeMeta) -> Option<String> {
+        let mut used = vec![false; meta.bands()];
+        for im in &self.imagers {
+            for b in im.weights().active_bands() {
+                used[b] = true;
+            }
+        }
+        let unread: Vec<usize> = (0..used.len()).filter(|&b| !used[b]).collect();
+        if unread.is_empty() {
+            return None;
+        }
+        // Runs of consecutive bands, as `a–b (λa–λb µm)`.
+        let mut runs: Vec<String> = Vec::new();
+        let mut i = 0;
+        while i < unread.len() {
+            let mut j = i;
+            while j + 1 < unread.len() && unread[j + 1] == unread[j] + 1 {
+                j += 1;
+            }
+            let (a, b) = (unread[i], unread[j]);
+            let (la, lb) = (meta.wavelength_um[a], meta.wavelength_um[b]);
+            runs.push(if a == b {
+                format!("{a} ({la} µm)")
+            } else {
+                format!("{a}–{b} ({la}–{lb} µm)")
+            });
+            i = j + 1;
+        }
+        Some(format!(
+            "{} of {} input bands have zero sensor response and were not read (so not checked for NaN, ±Inf or negative radiance): band {}",
+            unread.len(),
+            meta.bands(),
+            runs.join(", ")
+        ))
+    }
+
     /// Scene → detector sampling (the same for every channel).
     pub fn sampling(&self) -> &Sampling {
         self.imagers[0].sampling()

@@ -250,6 +250,7 @@ pub fn run(
     warnings.extend(sensor.warnings().iter().cloned());
     let mut imaging = ImagingStage::new(sensor, &meta, &geometry, options.wrap_tolerance)?;
     warnings.extend(imaging.sampling().warnings.iter().cloned());
+    warnings.extend(imaging.unread_bands_warning(&meta));
     warnings.extend(sensor.detector().warnings().iter().cloned());
     let (input_frames, active) = (reader.frames(), imaging.bands_used());
     let n_frames = frame_count(input_frames, options.frames);
