@@ -73,7 +73,9 @@ impl Hdf5Reader {
     /// Opens a file and reads its metadata (no pixel data): `/frames` if present, else
     /// `/radiance`.
     pub fn open(path: &Path) -> Result<Self> {
-        std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+        // Regular files only, checked without blocking: the HDF5 library's own open would
+        // block forever on a FIFO.
+        drop(crate::io::input::open_regular(path)?);
         let file = File::open(path).ctx(path, "not a readable HDF5 file")?;
         let mut warnings = Vec::new();
         let sequence = file.link_exists(FRAMES);
@@ -126,6 +128,12 @@ impl Hdf5Reader {
             shape[expected_ndim - 2],
             shape[expected_ndim - 1],
         );
+        // One band plane (f32) and its read buffer, before any plane is read.
+        crate::limits::check_alloc(
+            &format!("reading {}", path.display()),
+            &[("rows", rows as u64), ("cols", cols as u64)],
+            8,
+        )?;
 
         let loc: &Location = &dataset;
         let wavelength_um = read_f64s(path, name, loc, "wavelength_um")?.ok_or_else(|| {
