@@ -283,6 +283,18 @@ pub fn temperature(args: TemperatureArgs) -> Result<()> {
             sensor.name
         );
     }
+    // The input's size from its header, before the (costly) calibration is built: a
+    // FIFO, a bomb or a frame of another sensor is refused at once.
+    let (rows, cols) = eoir::io::raster::image_dimensions(&args.input)?;
+    if (rows, cols) != (sensor.detector.rows, sensor.detector.cols) {
+        bail!(
+            "{}: the image is {cols} × {rows} pixels (width × height) but sensor `{}` records {} × {}",
+            args.input.display(),
+            sensor.name,
+            sensor.detector.cols,
+            sensor.detector.rows
+        );
+    }
     let model = sensor.detector();
     let instance = DetectorInstance::new(model, args.seed)?;
     let cal = Calibration::new(
