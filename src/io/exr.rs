@@ -435,7 +435,10 @@ fn check_exr_size(path: &Path, headers: &[exr::meta::header::Header], file_len: 
 /// Reads the headers only and checks, before any pixel is decoded, that every part's data
 /// window × channels (as f32, the decoder's flat samples, plus this reader's band planes:
 /// 8 bytes per sample) fits the memory budget of a whole-image decode (a single-channel image read in full, as `eoir restore` does) ([`crate::limits`]); rewinds `file`.
-pub fn check_exr_image_size(path: &Path, file: &mut std::io::BufReader<std::fs::File>) -> Result<()> {
+pub fn check_exr_image_size(
+    path: &Path,
+    file: &mut std::io::BufReader<std::fs::File>,
+) -> Result<()> {
     use std::io::{Seek, SeekFrom};
     let meta = exr::meta::MetaData::read_from_buffered(&mut *file, false).map_err(|e| match e {
         exr::error::Error::Io(io) => Error::io(path, io),
