@@ -22,12 +22,13 @@ pub struct ImagingStage {
 
 impl ImagingStage {
     /// Prepares the imagers of `sensor` for an input of `meta` with field of view
-    /// `geometry` (padding from `wrap_tolerance`, see [`crate::imaging::pad_width`]).
+    /// `geometry` (padding from `options.wrap_tolerance`, see
+    /// [`crate::imaging::pad_width`]; transforms in `options.fft_precision`).
     pub fn new(
         sensor: &Sensor,
         meta: &CubeMeta,
         geometry: &Geometry,
-        wrap_tolerance: f64,
+        options: &super::RunOptions,
     ) -> Result<Self> {
         let channels: Vec<&Sensor> = match sensor.cfa_channels() {
             [] => vec![sensor],
@@ -35,7 +36,10 @@ impl ImagingStage {
         };
         let imagers = channels
             .into_iter()
-            .map(|s| Imager::new(s, meta, geometry, wrap_tolerance))
+            .map(|s| {
+                Imager::new(s, meta, geometry, options.wrap_tolerance)
+                    .map(|i| i.with_precision(options.fft_precision))
+            })
             .collect::<Result<Vec<_>>>()?;
         Ok(ImagingStage {
             imagers,
@@ -121,6 +125,7 @@ impl ImagingStage {
             self.stats.inverse_s += s.inverse_s;
             self.stats.bands_used += s.bands_used;
             self.stats.padded_shape = s.padded_shape;
+            self.stats.precision = s.precision;
             planes.push(e);
         }
         match self.pattern {
