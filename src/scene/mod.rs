@@ -200,6 +200,11 @@ pub fn check_radiance_plane(
     wavelength_um: f64,
     plane: ndarray::ArrayView2<f32>,
 ) -> Result<()> {
+    // Fast path: one comparison pair per value (NaN fails both), no index bookkeeping.
+    let physical = |v: &f32| *v >= 0.0 && *v <= f32::MAX;
+    if plane.iter().all(physical) {
+        return Ok(());
+    }
     for ((r, c), v) in plane.indexed_iter() {
         if !v.is_finite() || *v < 0.0 {
             return Err(Error::format(
