@@ -2,10 +2,13 @@
 //!
 //! Arrays are band-major `[band, row, col]` (docs/design.md §3). Angular geometry uses the
 //! paraxial convention of the sensor model: a cube with `cols` samples over a horizontal
-//! field of view `fov_x` samples the scene every `ifov_x = fov_x / cols` radians.
+//! field of view `fov_x` samples the scene every `ifov_x = fov_x / cols` radians
+//! ([`sizing`] holds the one rule for the angular extent of a grid and sizes synthetic
+//! scenes to a detector with it).
 
 use ndarray::Array3;
 
+pub mod sizing;
 pub mod synthetic;
 pub mod units;
 
