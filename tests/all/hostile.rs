@@ -1020,6 +1020,17 @@ fn images_tables_and_descriptors_of_every_command_are_bounded_before_allocating(
         ),
         (
             &[
+                "edge-mtf",
+                "lo.png",
+                "--roi",
+                "18446744073709551615,0,10,10",
+                "-o",
+                "e",
+            ],
+            &["--roi", "inside the 8 × 8"],
+        ),
+        (
+            &[
                 "nuc", "apply", "bomb.png", "--nuc", "nuc.json", "-o", "a.tiff",
             ],
             &["bomb.png", "100000 x 100000"],
@@ -1235,7 +1246,7 @@ fn special_files_given_to_any_command_are_refused_without_blocking() {
 }
 
 #[test]
-fn the_library_refuses_zero_frames_rather_than_running_one() {
+fn the_library_refuses_zero_frames_and_wrapping_frame_indices() {
     // The CLI refuses `--frames 0` itself; the library (and through it the Python
     // package) must too, not quietly run one frame.
     use eoir::scene::synthetic::{self, SceneParams};
@@ -1258,6 +1269,15 @@ fn the_library_refuses_zero_frames_rather_than_running_one() {
     };
     let e = eoir::pipeline::run(&sensor, &mut reader, &options, |_, _| {}).unwrap_err();
     assert!(e.to_string().contains("`frames` = 0"), "{e}");
+    // A first frame index whose sequence would wrap past 2⁶⁴ − 1.
+    let options = eoir::pipeline::RunOptions {
+        frames: 2,
+        first_frame: u64::MAX - 1,
+        calibration: None,
+        ..Default::default()
+    };
+    let e = eoir::pipeline::run(&sensor, &mut reader, &options, |_, _| {}).unwrap_err();
+    assert!(e.to_string().contains("first_frame"), "{e}");
 }
 
 #[test]
