@@ -262,12 +262,15 @@ impl PyParser<'_> {
 
 /// What an NPY header says about the array.
 #[derive(Debug, Clone)]
-struct NpyHeader {
-    ty: SampleType,
-    big_endian: bool,
-    shape: Vec<usize>,
+pub(crate) struct NpyHeader {
+    /// Element type.
+    pub(crate) ty: SampleType,
+    /// Big-endian elements.
+    pub(crate) big_endian: bool,
+    /// Array shape, C order.
+    pub(crate) shape: Vec<usize>,
     /// Byte offset of the first array element.
-    data_start: u64,
+    pub(crate) data_start: u64,
 }
 
 /// Parses the dtype string of a simple (non-structured) array.
@@ -307,8 +310,10 @@ fn parse_descr(path: &Path, d: &str) -> Result<(SampleType, bool)> {
     Ok((ty, big_endian))
 }
 
-/// Reads and checks the NPY preamble and header dictionary.
-fn read_header(path: &Path, file: &mut File, file_len: u64) -> Result<NpyHeader> {
+/// Reads and checks the NPY preamble and header dictionary with the bounded parser (no
+/// recursion on input, no allocation beyond the header's length, which is checked against
+/// `file_len`). Other NPY readers of the crate (NUC coefficients) validate through it.
+pub(crate) fn read_header(path: &Path, file: &mut File, file_len: u64) -> Result<NpyHeader> {
     let bad = |m: String| Error::format(path, m);
     let mut pre = [0u8; 8];
     if file_len < 10 {
