@@ -10,6 +10,7 @@ pub mod progress;
 pub mod restore;
 pub mod run;
 pub mod sensors;
+pub mod temperature;
 
 /// Parses `H,V` (two numbers).
 pub fn parse_pair(text: &str, what: &str) -> Result<(f64, f64)> {
