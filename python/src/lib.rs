@@ -305,16 +305,24 @@ fn parse_units(units: &str) -> PyResult<RadianceUnits> {
 }
 
 /// Calibration options as `eoir run --nuc-degree N` builds them: degree + 2 (at least 3)
-/// blackbody levels evenly from 280 to 320 K.
-fn calibration_options(degree: usize) -> CalibrationOptions {
+/// blackbody levels evenly from 280 to 320 K. A degree outside 0 to `MAX_DEGREE` is an
+/// error before the level list is built (`nuc_degree=10**9` would otherwise ask for a
+/// billion levels).
+fn calibration_options(degree: usize) -> PyResult<CalibrationOptions> {
+    let max = eoir::processing::nuc::MAX_DEGREE;
+    if degree > max {
+        return Err(PyValueError::new_err(format!(
+            "invalid parameter `nuc_degree` = {degree}: a NUC degree from 0 to {max}"
+        )));
+    }
     let levels = (degree + 2).max(3);
-    CalibrationOptions {
+    Ok(CalibrationOptions {
         temperatures_k: (0..levels)
             .map(|i| 280.0 + 40.0 * i as f64 / (levels - 1) as f64)
             .collect(),
         degree,
         ..Default::default()
-    }
+    })
 }
 
 /// Stacks per-frame planes into `[frame, row, col]`.
@@ -414,7 +422,9 @@ fn run<'py>(
         frames,
         first_frame,
         input_name: source.clone(),
-        calibration: calibrate.then(|| calibration_options(nuc_degree)),
+        calibration: calibrate
+            .then(|| calibration_options(nuc_degree))
+            .transpose()?,
         ..Default::default()
     };
     let sensor = &sensor.inner;

@@ -70,6 +70,24 @@ def test_nan_radiance_raises_value_error(small_sensor, small_scene):
         eoir.run(small_sensor, bad, small_scene.wavelength_um, small_scene.fov_deg)
 
 
+def test_hostile_values_raise_value_error_not_a_crash(small_sensor, small_scene):
+    # Issue 11: the same hostile values as on the command line reach the library through
+    # the Python entry point and come back as one ValueError naming the setting.
+    c = small_scene
+    with pytest.raises(ValueError, match="nuc_degree"):
+        eoir.run(small_sensor, c, nuc_degree=10**9)
+    with pytest.raises(ValueError, match="nuc_degree"):
+        eoir.run(small_sensor, c, nuc_degree=9)
+    with pytest.raises(ValueError, match="frames"):
+        eoir.run(small_sensor, c, frames=0)
+    with pytest.raises(ValueError, match="field of view"):
+        eoir.run(small_sensor, c.radiance, c.wavelength_um, (math.inf, math.inf))
+    with pytest.raises(ValueError, match="field of view"):
+        eoir.run(small_sensor, c.radiance, c.wavelength_um, (200.0, 4.0))
+    with pytest.raises(ValueError, match="memory limit"):
+        eoir.run(small_sensor, c, frames=10**12)
+
+
 def test_missing_file_raises_os_error(tmp_path):
     with pytest.raises(OSError, match="missing.hdr"):
         eoir.read_cube(tmp_path / "missing.hdr")

@@ -265,6 +265,20 @@ fn too_few(what: &str, path: &Path) -> Error {
 /// at its exposure time, fewer than 2 pairs in the fit range, or a non-positive K.
 pub fn characterize(path: &Path) -> Result<Characterization> {
     let d = Descriptor::read(path)?;
+    // The image size comes from the descriptor: checked against the memory budget before
+    // anything per pixel exists. Per pixel: the defect mask and valid-pixel index (9 B),
+    // the defect pass's first frame, current frame and decode buffer (8 B), and the
+    // longest series' f64 stack.
+    let longest = d.series.iter().map(|s| s.images.len()).max().unwrap_or(0) as u64;
+    crate::limits::check_alloc(
+        &format!("characterising {}", path.display()),
+        &[
+            ("width", d.width as u64),
+            ("height", d.height as u64),
+            ("bytes per pixel", 17 + 8 * longest),
+        ],
+        1,
+    )?;
     let temporal_dark: Vec<&Series> = d
         .series
         .iter()

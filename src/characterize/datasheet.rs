@@ -114,8 +114,10 @@ pub fn write_outputs(c: &Characterization, out: &Path, title: &str) -> Result<()
         },
     )?;
 
+    // The plots just written are read back through the regular-file guard: a FIFO or
+    // device swapped in meanwhile is refused rather than blocking or streaming forever.
     let img = |p: &Path| -> Result<String> {
-        let bytes = std::fs::read(p).map_err(|e| Error::io(p, e))?;
+        let bytes = crate::input::read_regular(p, crate::input::MAX_TEXT_BYTES)?;
         Ok(format!("data:image/png;base64,{}", base64(&bytes)))
     };
     let html = page(c, title, &img(&ptc)?, &img(&snr)?);

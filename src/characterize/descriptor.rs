@@ -216,15 +216,30 @@ impl Descriptor {
         for s in &d.series {
             for img in &s.images {
                 let p = image_path(dir, img);
-                if !p.is_file() {
-                    return Err(Error::format(
-                        path,
-                        format!(
-                            "line {}: image `{img}` does not exist (looked for {})",
-                            s.line,
-                            p.display()
-                        ),
-                    ));
+                match std::fs::metadata(&p) {
+                    Ok(m) if m.is_file() => {}
+                    Ok(m) => {
+                        return Err(Error::format(
+                            path,
+                            format!(
+                                "line {}: image `{}` ({}) is {}; images are read only from regular files",
+                                s.line,
+                                crate::limits::escape_token(img),
+                                p.display(),
+                                crate::input::kind_name(&m)
+                            ),
+                        ))
+                    }
+                    Err(_) => {
+                        return Err(Error::format(
+                            path,
+                            format!(
+                                "line {}: image `{img}` does not exist (looked for {})",
+                                s.line,
+                                p.display()
+                            ),
+                        ))
+                    }
                 }
             }
         }

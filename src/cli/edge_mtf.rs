@@ -37,6 +37,11 @@ pub struct EdgeMtfArgs {
     pub output: PathBuf,
 }
 
+/// Peak memory of `eoir edge-mtf` per image pixel, bytes: 49 B/px measured (peak resident
+/// set of a 2000 × 2000 image, 197 MB: the f64 image, the dead-pixel pass and the cleaned
+/// copy); rounded up to 64.
+const EDGE_MTF_BYTES_PER_PIXEL: u64 = 64;
+
 /// `eoir edge-mtf`.
 pub fn edge_mtf(args: EdgeMtfArgs) -> Result<()> {
     let sensor = match &args.sensor {
@@ -44,7 +49,7 @@ pub fn edge_mtf(args: EdgeMtfArgs) -> Result<()> {
         None => None,
     };
     let roi = args.roi.as_deref().map(Roi::parse).transpose()?;
-    let (image, _) = read_image(&args.image)?;
+    let (image, _) = read_image(&args.image, EDGE_MTF_BYTES_PER_PIXEL)?;
     if let Some(s) = &sensor {
         let (rows, cols) = image.dim();
         if (rows, cols) != (s.detector.rows, s.detector.cols) {

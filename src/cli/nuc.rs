@@ -74,19 +74,34 @@ pub fn nuc(args: NucArgs) -> Result<()> {
     }
 }
 
-/// Reads a 16-bit DN image (PNG or TIFF) as f64.
-pub fn read_dn(path: &Path) -> Result<Array2<f64>> {
+/// The size `(rows, cols)` of a DN image (PNG or TIFF) from its header alone, so that a
+/// frame of the wrong (or a huge) size is refused before it is decoded.
+fn dn_dimensions(path: &Path) -> Result<(usize, usize)> {
+    dn_extension(path)?;
+    Ok(raster::image_dimensions(path)?)
+}
+
+/// The lower-case extension of a DN image path, if it is one `read_dn` reads.
+fn dn_extension(path: &Path) -> Result<String> {
     let ext = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
-    let img = match ext.as_str() {
-        "png" => raster::read_png_u16(path)?,
-        "tif" | "tiff" => raster::read_tiff_u16(path)?,
-        _ => bail!(
+    if !matches!(ext.as_str(), "png" | "tif" | "tiff") {
+        bail!(
             "{}: unsupported image type `.{ext}`; expected a 16-bit greyscale .png or .tif/.tiff",
             path.display()
-        ),
+        );
+    }
+    Ok(ext)
+}
+
+/// Reads a 16-bit DN image (PNG or TIFF) as f64.
+pub fn read_dn(path: &Path) -> Result<Array2<f64>> {
+    let ext = dn_extension(path)?;
+    let img = match ext.as_str() {
+        "png" => raster::read_png_u16(path)?,
+        _ => raster::read_tiff_u16(path)?,
     };
     Ok(to_f64(img.view()))
 }
@@ -109,6 +124,13 @@ fn npy_path(path: &Path) -> Result<PathBuf> {
 fn fit(a: FitArgs) -> Result<()> {
     let npy = npy_path(&a.output)?;
     let t = &a.temperatures_k;
+    let max = eoir::processing::nuc::MAX_DEGREE;
+    if a.degree > max {
+        bail!(
+            "--degree {}: the NUC polynomial degree must be 0 to {max}",
+            a.degree
+        );
+    }
     if let Some(v) = t.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
         bail!("--temperatures-k: {v} is not a temperature; give finite values > 0 K");
     }
@@ -133,20 +155,39 @@ fn fit(a: FitArgs) -> Result<()> {
         );
     }
     let per = a.frames.len() / t.len();
+    // Checked from the headers before any frame is decoded: every frame has the first
+    // one's size, and one group's f64 stack, the T mean frames and the fit's per-pixel
+    // working set (coefficients and normal equations, about 2·(degree + 1) + 4 values)
+    // fit the memory budget.
+    let first = &a.frames[0];
+    let (rows, cols) = dn_dimensions(first)?;
+    for p in &a.frames[1..] {
+        let dim = dn_dimensions(p)?;
+        if dim != (rows, cols) {
+            bail!(
+                "{}: the frame is {} x {} pixels (rows x cols) but {} is {rows} x {cols}; all frames must have one size",
+                p.display(), dim.0, dim.1, first.display()
+            );
+        }
+    }
+    let planes = (per + t.len() + 2 * (a.degree + 1) + 4) as u64;
+    eoir::limits::check_alloc(
+        "nuc fit",
+        &[
+            ("planes", planes),
+            ("rows", rows as u64),
+            ("columns", cols as u64),
+        ],
+        8,
+    )?;
     let mut means: Vec<Array2<f64>> = Vec::with_capacity(t.len());
-    let mut shape = None;
     for group in a.frames.chunks(per) {
         let mut stack: Option<Array3<f64>> = None;
         for (i, p) in group.iter().enumerate() {
             let img = read_dn(p)?;
             let dim = img.dim();
-            match shape {
-                None => shape = Some((dim, p.clone())),
-                Some((s, ref first)) if s != dim => bail!(
-                    "{}: the frame is {} x {} pixels (rows x cols) but {} is {} x {}; all frames must have one size",
-                    p.display(), dim.0, dim.1, first.display(), s.0, s.1
-                ),
-                _ => {}
+            if dim != (rows, cols) {
+                bail!("{}: the decoded frame is {} x {} pixels, not the {rows} x {cols} its header states", p.display(), dim.0, dim.1);
             }
             let st = stack.get_or_insert_with(|| Array3::zeros((group.len(), dim.0, dim.1)));
             st.index_axis_mut(Axis(0), i).assign(&img);
@@ -206,16 +247,25 @@ fn apply(a: ApplyArgs) -> Result<()> {
         );
     }
     let coeffs = NucCoefficients::load(&npy)?;
-    let img = read_dn(&a.image)?;
-    if img.dim() != coeffs.dim() {
+    let (rows, cols) = dn_dimensions(&a.image)?;
+    if (rows, cols) != coeffs.dim() {
         bail!(
             "{}: the image is {} x {} pixels (rows x cols) but the NUC {} is for {} x {}",
             a.image.display(),
-            img.nrows(),
-            img.ncols(),
+            rows,
+            cols,
             a.nuc.display(),
             coeffs.dim().0,
             coeffs.dim().1
+        );
+    }
+    let img = read_dn(&a.image)?;
+    if img.dim() != (rows, cols) {
+        bail!(
+            "{}: the decoded image is {} x {} pixels, not the {rows} x {cols} its header states",
+            a.image.display(),
+            img.nrows(),
+            img.ncols()
         );
     }
     let corrected = coeffs.apply(img.view())?;

@@ -140,6 +140,18 @@ pub fn temperature(args: TemperatureArgs) -> Result<()> {
         );
     }
     let opts = calibration_options(args.nuc_degree, &args.calibration_temperatures)?;
+    // The input's size from its header, before anything costly: a FIFO, a bomb or a frame
+    // of another sensor is refused at once.
+    let (rows, cols) = eoir::io::raster::image_dimensions(&args.input)?;
+    if (rows, cols) != (sensor.detector.rows, sensor.detector.cols) {
+        bail!(
+            "{}: the image is {cols} × {rows} pixels (width × height) but sensor `{}` records {} × {}",
+            args.input.display(),
+            sensor.name,
+            sensor.detector.cols,
+            sensor.detector.rows
+        );
+    }
     let input = match eoir::io::raster::read_tiff_u16(&args.input) {
         Ok(dn) => Input::Dn(dn),
         Err(_) => Input::Radiance(eoir::io::raster::read_tiff_f32(&args.input).with_context(

@@ -249,6 +249,61 @@ fn tiff_kind(d: &tiff::decoder::DecodingResult) -> &'static str {
     }
 }
 
+/// The size `(rows, cols)` of a PNG, TIFF or OpenEXR image (chosen by the extension, case
+/// insensitive) read from its header alone, so that a caller can check its own working
+/// set against the memory budget ([`crate::limits`]) before any pixel is decoded. For an
+/// OpenEXR file it is the first part's data window.
+///
+/// Errors: an unsupported extension, a file that is not a regular file, or a header the
+/// decoder rejects, naming the file.
+pub fn image_dimensions(path: &Path) -> Result<(usize, usize)> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let file = BufReader::new(crate::io::input::open_regular(path)?);
+    let (w, h): (u64, u64) = match ext.as_str() {
+        "png" => {
+            let reader = png::Decoder::new(file)
+                .read_info()
+                .map_err(|e| png_dec_err(path, e))?;
+            let (w, h) = reader.info().size();
+            (w.into(), h.into())
+        }
+        "tif" | "tiff" => {
+            let mut dec = tiff::decoder::Decoder::new(file)
+                .map_err(|e| tiff_err(path, e))?
+                .with_limits(tiff_limits());
+            let (w, h) = dec.dimensions().map_err(|e| tiff_err(path, e))?;
+            (w.into(), h.into())
+        }
+        "exr" => {
+            let mut file = file;
+            let meta =
+                exr::meta::MetaData::read_from_buffered(&mut file, false).map_err(|e| match e {
+                    exr::error::Error::Io(io) => Error::io(path, io),
+                    other => Error::format(path, format!("not a readable OpenEXR file: {other}")),
+                })?;
+            let h = meta
+                .headers
+                .first()
+                .ok_or_else(|| Error::format(path, "OpenEXR file without a part"))?;
+            (h.layer_size.0 as u64, h.layer_size.1 as u64)
+        }
+        other => {
+            return Err(Error::format(
+                path,
+                format!(
+                    "unsupported image type `.{}`; expected .png, .tif/.tiff or .exr",
+                    crate::limits::escape_token(other)
+                ),
+            ))
+        }
+    };
+    let to = |v: u64| usize::try_from(v).map_err(|_| Error::format(path, "image too large"));
+    Ok((to(h)?, to(w)?))
+}
+
 /// Reads a 16-bit greyscale PNG.
 pub fn read_png_u16(path: &Path) -> Result<Array2<u16>> {
     let file = crate::io::input::open_regular(path)?;
@@ -265,6 +320,14 @@ pub fn read_png_u16(path: &Path) -> Result<Array2<u16>> {
             format!("expected a 16-bit greyscale PNG, found {ct:?} at {depth:?}"),
         ));
     }
+    let (w, h) = reader.info().size();
+    // The decode buffer (2 bytes per sample) and the u16 array made from it, checked
+    // before either is allocated: a 200-byte PNG can claim 100000 × 100000 pixels.
+    crate::limits::check_alloc(
+        &format!("decoding {}", path.display()),
+        &[("rows", u64::from(h)), ("columns", u64::from(w))],
+        4,
+    )?;
     let size = reader
         .output_buffer_size()
         .ok_or_else(|| Error::format(path, "PNG image is too large"))?;

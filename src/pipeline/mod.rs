@@ -62,6 +62,9 @@ pub struct RunOptions {
     /// not depend on it). A sequence cut into pieces (e.g. chunks on several machines) and
     /// run piece by piece with the right `first_frame` gives the same DN as one run.
     pub first_frame: u64,
+    /// Precision of the imaging engine's per-band forward FFTs (f32 with f64 accumulation
+    /// by default; f64 for the reference path), see [`crate::imaging::fft::FftPrecision`].
+    pub fft_precision: crate::imaging::fft::FftPrecision,
 }
 
 impl Default for RunOptions {
@@ -74,6 +77,7 @@ impl Default for RunOptions {
             frames: 1,
             calibration: Some(CalibrationOptions::default()),
             first_frame: 0,
+            fft_precision: Default::default(),
         }
     }
 }
@@ -207,14 +211,31 @@ fn add_late_warnings(reader: &dyn CubeReader, model: &[String], warnings: &mut V
     }
 }
 
-/// Frames a run produces: every frame of a sequence, or `requested` (at least 1) exposures
-/// of a static (single-frame) input.
-fn frame_count(input_frames: usize, requested: usize) -> usize {
-    if input_frames == 1 {
-        requested.max(1)
+/// Frames a run produces: every frame of a sequence, or `requested` exposures of a static
+/// (single-frame) input. `requested = 0` is an error, never quietly one frame; so is a
+/// `first_frame` whose last frame index would pass 2⁶⁴ − 1 (the noise streams are keyed
+/// by it and must not wrap onto frame 0's).
+fn frame_count(input_frames: usize, requested: usize, first_frame: u64) -> Result<usize> {
+    if requested == 0 {
+        return Err(Error::param(
+            "frames",
+            0,
+            "at least 1 (exposures of a static scene; a sequence runs all its frames)",
+        ));
+    }
+    let n = if input_frames == 1 {
+        requested
     } else {
         input_frames
+    };
+    if first_frame.checked_add(n as u64).is_none() {
+        return Err(Error::param(
+            "first_frame",
+            first_frame,
+            format!("at most 2^64 - 1 - {n} (the frame count)"),
+        ));
     }
+    Ok(n)
 }
 
 impl FrameProducts {
@@ -248,11 +269,12 @@ pub fn run(
     let geometry = input_geometry(options, &meta)?;
     let mut warnings = reader.warnings();
     warnings.extend(sensor.warnings().iter().cloned());
-    let mut imaging = ImagingStage::new(sensor, &meta, &geometry, options.wrap_tolerance)?;
+    let mut imaging = ImagingStage::new(sensor, &meta, &geometry, options)?;
     warnings.extend(imaging.sampling().warnings.iter().cloned());
+    warnings.extend(imaging.unread_bands_warning(&meta));
     warnings.extend(sensor.detector().warnings().iter().cloned());
     let (input_frames, active) = (reader.frames(), imaging.bands_used());
-    let n_frames = frame_count(input_frames, options.frames);
+    let n_frames = frame_count(input_frames, options.frames, options.first_frame)?;
     check_budget(&imaging, &meta, sensor, n_frames)?;
     let (mut frames, mut detector_s) = (Vec::with_capacity(n_frames), 0.0);
     let mut mean: Option<Array2<f64>> = None;

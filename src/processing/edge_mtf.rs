@@ -94,7 +94,10 @@ impl Roi {
                 "a region of at least 8 × 8 pixels",
             ));
         }
-        if self.x + self.width > cols || self.y + self.height > rows {
+        // Checked sums: `--roi 18446744073709551615,0,10,10` must not wrap past the test.
+        let right = self.x.checked_add(self.width);
+        let bottom = self.y.checked_add(self.height);
+        if right.is_none_or(|r| r > cols) || bottom.is_none_or(|b| b > rows) {
             return Err(Error::param(
                 "--roi",
                 format!("{},{},{},{}", self.x, self.y, self.width, self.height),

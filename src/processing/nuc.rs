@@ -45,7 +45,6 @@
 //! pixels described above; the optional `bad_pixels` those flagged by the calibration
 //! ([`NucCoefficients::set_bad_pixels`]), to be replaced after correction. Unknown keys are errors. Both files are written atomically.
 
-use std::fs::File;
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
@@ -371,8 +370,8 @@ impl NucCoefficients {
                 ),
             ));
         }
-        let file = File::open(path).map_err(|e| Error::io(path, e))?;
-        let coefficients = Array3::<f64>::read_npy(BufReader::new(file)).map_err(|e| {
+        let coefficients = read_coefficients(path, [sc.degree + 1, sc.rows, sc.cols])?;
+        let coefficients = coefficients.map_err(|e| {
             Error::format(
                 path,
                 format!("cannot read a 3-D little-endian f64 NPY array: {e}"),
@@ -527,4 +526,52 @@ pub fn residual_nonuniformity(
         ));
     }
     Ok(var.sqrt() / mean.abs())
+}
+
+/// Opens the coefficient array (a regular file only, never blocking on a FIFO) and checks,
+/// with the crate's bounded NPY header parser and before anything of that size is
+/// allocated, that it holds `<f8`/`>f8` values of exactly the sidecar's `shape` in C
+/// order and that the file is exactly header + data long; then decodes it. A hostile
+/// header (a 4 GB header length, a shape of 2⁶³ elements, nesting 17,000 deep) is thus
+/// a typed error, never an allocation abort or a stack overflow in the decoder.
+fn read_coefficients(
+    path: &Path,
+    shape: [usize; 3],
+) -> Result<std::result::Result<Array3<f64>, ndarray_npy::ReadNpyError>> {
+    use std::io::{Seek, SeekFrom};
+    let mut file = crate::input::open_regular(path)?;
+    let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    let header = crate::io::npy::read_header(path, &mut file, len)?;
+    let dims = [
+        ("degree + 1", shape[0] as u64),
+        ("rows", shape[1] as u64),
+        ("cols", shape[2] as u64),
+    ];
+    let bytes = crate::limits::check_alloc(&format!("reading {}", path.display()), &dims, 8)?;
+    if header.ty != crate::io::binary::SampleType::F64 || header.shape != shape {
+        return Err(Error::format(
+            path,
+            format!(
+                "array type/shape do not match the sidecar: expected f8 values of shape [{}, {}, {}] (degree + 1, rows, cols), found {:?} of shape {:?}",
+                shape[0],
+                shape[1],
+                shape[2],
+                header.ty,
+                crate::limits::escape_bounded(&format!("{:?}", header.shape), 80)
+            ),
+        ));
+    }
+    if Some(len) != header.data_start.checked_add(bytes) {
+        return Err(Error::format(
+            path,
+            format!(
+                "file is {len} bytes, but its {}-byte header and {bytes} bytes of f8 values make {}",
+                header.data_start,
+                header.data_start.saturating_add(bytes)
+            ),
+        ));
+    }
+    file.seek(SeekFrom::Start(0))
+        .map_err(|e| Error::io(path, e))?;
+    Ok(Array3::<f64>::read_npy(BufReader::new(file)))
 }

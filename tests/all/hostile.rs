@@ -12,8 +12,16 @@ use std::time::{Duration, Instant};
 
 /// Address-space limit for each child, KiB (4 GiB).
 const AS_LIMIT_KIB: u64 = 4 << 20;
-/// A child still running after this long is a hang (generous: the machine is shared).
-const HANG_AFTER: Duration = Duration::from_secs(60);
+/// A hostile case still running after this long is a hang. Every case prints its time to
+/// the captured test output (`--nocapture` shows it): the slowest, `temperature` on a
+/// TIFF bomb (it builds the sensor and its calibration before reading the input), took
+/// 0.9 s with all hostile tests running in parallel on a 2-core machine at load 3.6
+/// (2026-11-23); every refusal before any real work took < 0.1 s. 5 s leaves a 5× margin
+/// for a slower, busier CI machine and still means "a few seconds" as issue 11 asks.
+const HANG_AFTER: Duration = Duration::from_secs(5);
+/// The SIGINT test's deliberately long fixture runs (150 frames, 7.6–8.1 s measured on the
+/// same machine) are work, not hostile cases: they get their own, looser limit.
+const LONG_RUN_AFTER: Duration = Duration::from_secs(120);
 
 #[derive(Debug)]
 struct Outcome {
@@ -36,7 +44,11 @@ fn spawn_limited(dir: &Path, args: &[OsString]) -> Child {
         .expect("spawning eoir")
 }
 
-fn finish(mut child: Child, what: &str) -> Outcome {
+fn finish(child: Child, what: &str) -> Outcome {
+    finish_within(child, what, HANG_AFTER)
+}
+
+fn finish_within(mut child: Child, what: &str, limit: Duration) -> Outcome {
     let mut out = child.stdout.take().unwrap();
     let mut err = child.stderr.take().unwrap();
     let t_out = std::thread::spawn(move || {
@@ -54,13 +66,17 @@ fn finish(mut child: Child, what: &str) -> Outcome {
         if let Some(s) = child.try_wait().unwrap() {
             break s;
         }
-        if start.elapsed() > HANG_AFTER {
+        if start.elapsed() > limit {
             let _ = child.kill();
             let _ = child.wait();
-            panic!("{what}: hangs (still running after {HANG_AFTER:?})");
+            panic!("{what}: hangs (still running after {limit:?})");
         }
         std::thread::sleep(Duration::from_millis(10));
     };
+    eprintln!(
+        "hostile case took {:.3} s: {what}",
+        start.elapsed().as_secs_f64()
+    );
     Outcome {
         code: status.code(),
         stdout: String::from_utf8_lossy(&t_out.join().unwrap()).into_owned(),
@@ -558,6 +574,16 @@ fn special_files_and_links_as_outputs_are_never_replaced() {
         &["plain", "not a directory"],
     );
 
+    // A missing directory: the error names the target, once, not the temporary file.
+    let a = mtf("nodir/x.csv");
+    let o = refused(
+        d,
+        &a.iter().map(String::as_str).collect::<Vec<_>>(),
+        &["nodir/x.csv", "No such file or directory"],
+    );
+    assert!(!o.stderr.contains("eoir-tmp"), "{}", o.stderr);
+    assert_eq!(o.stderr.matches("No such file").count(), 1, "{}", o.stderr);
+
     // `-` is standard output for the CSV.
     let before = listing(d);
     let o = eoir(d, &mtf("-").iter().map(String::as_str).collect::<Vec<_>>());
@@ -697,11 +723,10 @@ fn products(dir: &Path, skip_report: bool) -> BTreeMap<String, u64> {
         .collect()
 }
 
+/// Under `--features hdf5` the set includes `products.h5`, written last by libhdf5; the
+/// handler's clean-up copes with the HDF5 writer still creating its temporary file (see
+/// `io::output`, "Signals"), and the attempts below can land in that write.
 #[test]
-#[cfg_attr(
-    feature = "hdf5",
-    ignore = "known defect: with the HDF5 bundle a SIGINT while products.h5 is written leaves the staging directory (see the session note)"
-)]
 fn sigint_while_writing_a_sequence_leaves_the_old_set_or_the_complete_new_one() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
@@ -713,9 +738,17 @@ fn sigint_while_writing_a_sequence_leaves_the_old_set_or_the_complete_new_one() 
             .map(OsString::from)
             .collect()
     };
-    let o = finish(spawn_limited(d, &seq("out", "1")), "old run");
+    let o = finish_within(
+        spawn_limited(d, &seq("out", "1")),
+        "old run",
+        LONG_RUN_AFTER,
+    );
     assert_eq!(o.code, Some(0), "{}", o.stderr);
-    let o = finish(spawn_limited(d, &seq("reference", "2")), "reference run");
+    let o = finish_within(
+        spawn_limited(d, &seq("reference", "2")),
+        "reference run",
+        LONG_RUN_AFTER,
+    );
     assert_eq!(o.code, Some(0), "{}", o.stderr);
     let mut old = products(&d.join("out"), false);
     let new = products(&d.join("reference"), true);
@@ -729,16 +762,23 @@ fn sigint_while_writing_a_sequence_leaves_the_old_set_or_the_complete_new_one() 
     // Signal once the staging directory holds k files (k differs per attempt) or, for the
     // last attempt, as late as possible (when the staging directory disappears: the move).
     let mut interrupted = 0;
-    for (attempt, signal) in [
+    // With HDF5 one more attempt signals as soon as products.h5 (written last, by libhdf5)
+    // has appeared in the staging directory.
+    const DURING_HDF5: usize = usize::MAX;
+    let mut attempts = vec![
         (1usize, libc::SIGINT),
         (400, libc::SIGTERM),
         (1100, libc::SIGINT),
-    ] {
+    ];
+    if cfg!(feature = "hdf5") {
+        attempts.push((DURING_HDF5, libc::SIGINT));
+    }
+    for (attempt, signal) in attempts {
         let child = spawn_limited(d, &seq("out", "2"));
         let pid = child.id() as i32;
         let start = Instant::now();
         loop {
-            let staged: usize = std::fs::read_dir(d.join("out"))
+            let staging: Vec<PathBuf> = std::fs::read_dir(d.join("out"))
                 .unwrap()
                 .filter_map(|e| e.ok())
                 .filter(|e| {
@@ -746,16 +786,27 @@ fn sigint_while_writing_a_sequence_leaves_the_old_set_or_the_complete_new_one() 
                         .to_string_lossy()
                         .starts_with(".eoir-staging-")
                 })
-                .map(|e| std::fs::read_dir(e.path()).map_or(0, |r| r.count()))
-                .sum();
-            if staged >= attempt || start.elapsed() > HANG_AFTER {
+                .map(|e| e.path())
+                .collect();
+            let names: Vec<String> = staging
+                .iter()
+                .flat_map(|p| std::fs::read_dir(p).into_iter().flatten())
+                .filter_map(|e| e.ok())
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .collect();
+            let reached = if attempt == DURING_HDF5 {
+                names.iter().any(|n| n.contains("products.h5"))
+            } else {
+                names.len() >= attempt
+            };
+            if reached || start.elapsed() > LONG_RUN_AFTER {
                 break;
             }
             std::thread::sleep(Duration::from_millis(2));
         }
         // SAFETY: signalling our own child by its pid.
         unsafe { libc::kill(pid, signal) };
-        let o = finish(child, "interrupted run");
+        let o = finish_within(child, "interrupted run", LONG_RUN_AFTER);
         assert!(!o.stderr.contains("panicked"), "{}", o.stderr);
         let after = listing(&d.join("out"));
         for name in after.keys() {
@@ -779,7 +830,11 @@ fn sigint_while_writing_a_sequence_leaves_the_old_set_or_the_complete_new_one() 
                 assert_eq!(products(&d.join("out"), true), new);
                 // Restore the old set for the next attempt.
                 std::fs::remove_dir_all(d.join("out")).unwrap();
-                let o = finish(spawn_limited(d, &seq("out", "1")), "old run again");
+                let o = finish_within(
+                    spawn_limited(d, &seq("out", "1")),
+                    "old run again",
+                    LONG_RUN_AFTER,
+                );
                 assert_eq!(o.code, Some(0), "{}", o.stderr);
                 let again = products(&d.join("out"), false);
                 let mut a = again.clone();
@@ -793,4 +848,482 @@ fn sigint_while_writing_a_sequence_leaves_the_old_set_or_the_complete_new_one() 
         }
     }
     assert!(interrupted >= 1, "no attempt was interrupted while writing");
+}
+
+/// CRC-32 (ISO-HDLC, the PNG chunk checksum), bitwise.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = 0xffff_ffffu32;
+    for &b in bytes {
+        c ^= b as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xedb8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+/// A ~100-byte 16-bit greyscale PNG whose header claims `width × height` pixels (the
+/// image data is a few zero rows: the decoder must refuse before allocating the frame).
+fn png_claiming(width: u32, height: u32) -> Vec<u8> {
+    let chunk = |ty: &[u8], data: &[u8]| -> Vec<u8> {
+        let mut out = (data.len() as u32).to_be_bytes().to_vec();
+        let mut body = ty.to_vec();
+        body.extend_from_slice(data);
+        out.extend_from_slice(&body);
+        out.extend_from_slice(&crc32(&body).to_be_bytes());
+        out
+    };
+    let mut ihdr = width.to_be_bytes().to_vec();
+    ihdr.extend_from_slice(&height.to_be_bytes());
+    ihdr.extend_from_slice(&[16, 0, 0, 0, 0]);
+    // A stored (uncompressed) zlib stream of 8 zero bytes.
+    let idat = [
+        0x78, 0x01, 0x01, 0x08, 0x00, 0xf7, 0xff, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1,
+    ];
+    let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+    out.extend(chunk(b"IHDR", &ihdr));
+    out.extend(chunk(b"IDAT", &idat));
+    out.extend(chunk(b"IEND", &[]));
+    out
+}
+
+/// An uncompressed 16-bit TIFF of `width × height` pixels, one strip per row, whose pixel
+/// data is a hole of a sparse file (no disk blocks): a valid, huge image in a few KB.
+fn sparse_tiff(path: &Path, width: u32, height: u32) {
+    let row_bytes = width * 2;
+    let ifd_len = 2 + 9 * 12 + 4;
+    let offsets_at = 8 + ifd_len;
+    let counts_at = offsets_at + 4 * height;
+    let data_at = counts_at + 4 * height;
+    let mut out = b"II*\0".to_vec();
+    out.extend_from_slice(&8u32.to_le_bytes());
+    let entries: [(u16, u16, u32, u32); 9] = [
+        (256, 4, 1, width),
+        (257, 4, 1, height),
+        (258, 3, 1, 16),
+        (259, 3, 1, 1),
+        (262, 3, 1, 1),
+        (273, 4, height, offsets_at),
+        (277, 3, 1, 1),
+        (278, 4, 1, 1),
+        (279, 4, height, counts_at),
+    ];
+    out.extend_from_slice(&(entries.len() as u16).to_le_bytes());
+    for (tag, ty, count, value) in entries {
+        out.extend_from_slice(&tag.to_le_bytes());
+        out.extend_from_slice(&ty.to_le_bytes());
+        out.extend_from_slice(&count.to_le_bytes());
+        out.extend_from_slice(&value.to_le_bytes());
+    }
+    out.extend_from_slice(&0u32.to_le_bytes());
+    for r in 0..height {
+        out.extend_from_slice(&(data_at + r * row_bytes).to_le_bytes());
+    }
+    for _ in 0..height {
+        out.extend_from_slice(&row_bytes.to_le_bytes());
+    }
+    std::fs::write(path, &out).unwrap();
+    let f = std::fs::OpenOptions::new().write(true).open(path).unwrap();
+    f.set_len(data_at as u64 + row_bytes as u64 * height as u64)
+        .unwrap();
+}
+
+/// Two 8 × 8 PNG frames at different levels and a NUC fitted from them (`nuc.json` +
+/// `nuc.npy`), for the `nuc` and `characterize` cases.
+fn fixture_nuc(d: &Path) {
+    use ndarray::Array2;
+    let lo = Array2::<u16>::from_shape_fn((8, 8), |(r, c)| 1000 + (r * 8 + c) as u16);
+    let hi = lo.mapv(|v| v * 2);
+    eoir::io::raster::write_png_u16(&d.join("lo.png"), lo.view()).unwrap();
+    eoir::io::raster::write_png_u16(&d.join("hi.png"), hi.view()).unwrap();
+    let o = eoir(
+        d,
+        &[
+            "nuc",
+            "fit",
+            "lo.png",
+            "hi.png",
+            "--temperatures-k",
+            "290,310",
+            "-o",
+            "nuc.json",
+        ],
+    );
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+}
+
+#[test]
+fn images_tables_and_descriptors_of_every_command_are_bounded_before_allocating() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A 120-byte PNG claiming 100000 × 100000 pixels, given to every image reader.
+    std::fs::write(d.join("bomb.png"), png_claiming(100_000, 100_000)).unwrap();
+    // A valid 20000 × 20000 16-bit TIFF (800 MB of pixels, all a sparse hole).
+    sparse_tiff(&d.join("wide.tiff"), 20_000, 20_000);
+    fixture_nuc(d);
+    for (args, needles) in [
+        (
+            &["edge-mtf", "bomb.png", "-o", "e"][..],
+            &["bomb.png", "memory limit"][..],
+        ),
+        (
+            &["edge-mtf", "wide.tiff", "-o", "e"],
+            &["wide.tiff", "memory limit"],
+        ),
+        (
+            &["restore", "bomb.png", "--sensor", "multimir", "-o", "r"],
+            &["bomb.png", "100000 × 100000"],
+        ),
+        (
+            &["restore", "wide.tiff", "--sensor", "multimir", "-o", "r"],
+            &["wide.tiff", "20000 × 20000"],
+        ),
+        (
+            &[
+                "nuc",
+                "fit",
+                "wide.tiff",
+                "wide.tiff",
+                "--temperatures-k",
+                "280,300",
+                "-o",
+                "n.json",
+            ],
+            &["nuc fit", "memory limit"],
+        ),
+        (
+            &[
+                "nuc",
+                "fit",
+                "lo.png",
+                "bomb.png",
+                "--temperatures-k",
+                "280,300",
+                "-o",
+                "n.json",
+            ],
+            &["bomb.png", "one size"],
+        ),
+        (
+            &[
+                "nuc",
+                "fit",
+                "lo.png",
+                "hi.png",
+                "--temperatures-k",
+                "280,300",
+                "--degree",
+                "18446744073709551615",
+                "-o",
+                "n.json",
+            ],
+            &["--degree", "0 to 8"],
+        ),
+        (
+            &[
+                "edge-mtf",
+                "lo.png",
+                "--roi",
+                "18446744073709551615,0,10,10",
+                "-o",
+                "e",
+            ],
+            &["--roi", "inside the 8 × 8"],
+        ),
+        (
+            &[
+                "nuc", "apply", "bomb.png", "--nuc", "nuc.json", "-o", "a.tiff",
+            ],
+            &["bomb.png", "100000 x 100000"],
+        ),
+        (
+            &["temperature", "--sensor", "multimir", "bomb.png", "-o", "t"],
+            &["bomb.png"],
+        ),
+        // Synthetic scenes: the band count and the generators' working set.
+        (
+            &[
+                "scene",
+                "blackbody",
+                "--rows",
+                "16",
+                "--cols",
+                "16",
+                "--bands",
+                "18446744073709551615",
+                "-o",
+                "s.hdr",
+            ],
+            &["bands"],
+        ),
+        (
+            &[
+                "scene",
+                "blackbody",
+                "--rows",
+                "50000",
+                "--cols",
+                "50000",
+                "--bands",
+                "1",
+                "-o",
+                "s.hdr",
+            ],
+            &["synthetic scene", "memory limit"],
+        ),
+        (
+            &[
+                "scene", "thermal", "--rows", "30000", "--cols", "30000", "--bands", "2", "-o",
+                "s.npy",
+            ],
+            &["synthetic scene", "memory limit"],
+        ),
+    ] {
+        refused(d, args, needles);
+    }
+
+    // NUC coefficient files: the sidecar's size and the NPY header are checked before the
+    // array is decoded.
+    let sidecar = std::fs::read_to_string(d.join("nuc.json")).unwrap();
+    let npy = std::fs::read(d.join("nuc.npy")).unwrap();
+    std::fs::write(
+        d.join("rows.json"),
+        sidecar
+            .replace("\"rows\": 8", "\"rows\": 4000000000")
+            .replace("\"cols\": 8", "\"cols\": 4000000000"),
+    )
+    .unwrap();
+    std::fs::write(d.join("rows.npy"), &npy).unwrap();
+    let shape =
+        "{'descr': '<f8', 'fortran_order': False, 'shape': (2147483648, 2147483648, 2147483648), }";
+    let deep = format!(
+        "{{'descr': '<f8', 'fortran_order': False, 'shape': {}{}, }}",
+        "(".repeat(17_000),
+        ")".repeat(17_000)
+    );
+    std::fs::write(d.join("shape.json"), &sidecar).unwrap();
+    std::fs::write(d.join("shape.npy"), npy_bytes(shape, &[0u8; 64])).unwrap();
+    std::fs::write(d.join("deep.json"), &sidecar).unwrap();
+    std::fs::write(d.join("deep.npy"), npy_bytes(&deep, &[])).unwrap();
+    // NPY v2 whose header length field claims 4 GiB.
+    let mut long = b"\x93NUMPY\x02\x00".to_vec();
+    long.extend_from_slice(&u32::MAX.to_le_bytes());
+    long.extend_from_slice(b"{'descr': '<f8'");
+    std::fs::write(d.join("long.json"), &sidecar).unwrap();
+    std::fs::write(d.join("long.npy"), long).unwrap();
+    for (nuc, needles) in [
+        ("rows.json", &["rows.npy", "memory limit"][..]),
+        ("shape.json", &["shape.npy", "do not match the sidecar"]),
+        ("deep.json", &["deep.npy", "nesting deeper"]),
+        ("long.json", &["long.npy", "truncated"]),
+    ] {
+        refused(
+            d,
+            &["nuc", "apply", "lo.png", "--nuc", nuc, "-o", "a.tiff"],
+            needles,
+        );
+    }
+
+    // EMVA 1288 descriptor: the image size it states is budgeted before the analysis.
+    let o = eoir(
+        d,
+        &[
+            "characterize",
+            "--simulate",
+            "--sensor",
+            "multimir",
+            "--window",
+            "16",
+            "-o",
+            "set",
+        ],
+    );
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    let desc = std::fs::read_to_string(d.join("set/descriptor.txt")).unwrap();
+    assert!(desc.contains("\nn 14 16 16\n"), "{desc}");
+    std::fs::write(
+        d.join("set/descriptor.txt"),
+        desc.replace("\nn 14 16 16\n", "\nn 14 1000000 1000000\n"),
+    )
+    .unwrap();
+    refused(
+        d,
+        &["characterize", "set", "-o", "c"],
+        &["descriptor.txt", "memory limit"],
+    );
+}
+
+#[test]
+fn special_files_given_to_any_command_are_refused_without_blocking() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    fixture_nuc(d);
+    for name in ["f.png", "f.tiff", "f.exr", "f.toml", "g.json", "g.npy"] {
+        mkfifo(&d.join(name));
+    }
+    // A NUC whose coefficient array is a FIFO (the sidecar is genuine).
+    std::fs::copy(d.join("nuc.json"), d.join("g.json.tmp")).unwrap();
+    std::fs::remove_file(d.join("g.json")).unwrap();
+    std::fs::rename(d.join("g.json.tmp"), d.join("g.json")).unwrap();
+    mkfifo(&d.join("h.json"));
+    for (args, needles) in [
+        (
+            &["edge-mtf", "f.png", "-o", "e"][..],
+            &["f.png", "FIFO"][..],
+        ),
+        (&["edge-mtf", "f.tiff", "-o", "e"], &["f.tiff", "FIFO"]),
+        (
+            &["restore", "f.exr", "--sensor", "multimir", "-o", "r"],
+            &["f.exr", "FIFO"],
+        ),
+        (
+            &["restore", "f.tiff", "--sensor", "multimir", "-o", "r"],
+            &["f.tiff", "FIFO"],
+        ),
+        (
+            &[
+                "nuc",
+                "fit",
+                "lo.png",
+                "f.png",
+                "--temperatures-k",
+                "280,300",
+                "-o",
+                "n.json",
+            ],
+            &["f.png", "FIFO"],
+        ),
+        (
+            &["nuc", "apply", "f.png", "--nuc", "nuc.json", "-o", "a.tiff"],
+            &["f.png", "FIFO"],
+        ),
+        (
+            &["nuc", "apply", "lo.png", "--nuc", "g.json", "-o", "a.tiff"],
+            &["g.npy", "FIFO"],
+        ),
+        (
+            &["nuc", "apply", "lo.png", "--nuc", "h.json", "-o", "a.tiff"],
+            &["h.json", "FIFO"],
+        ),
+        (
+            &["temperature", "--sensor", "multimir", "f.tiff", "-o", "t"],
+            &["f.tiff", "FIFO"],
+        ),
+        (&["mtf", "--sensor", "f.toml"], &["f.toml", "FIFO"]),
+        (&["sensors", "show", "f.toml"], &["f.toml", "FIFO"]),
+    ] {
+        refused(d, args, needles);
+    }
+
+    // `characterize`: the descriptor, and an image it lists, as FIFOs.
+    let o = eoir(
+        d,
+        &[
+            "characterize",
+            "--simulate",
+            "--sensor",
+            "multimir",
+            "--window",
+            "16",
+            "-o",
+            "set",
+        ],
+    );
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    std::fs::remove_file(d.join("set/dark/d0_0.png")).unwrap();
+    mkfifo(&d.join("set/dark/d0_0.png"));
+    refused(
+        d,
+        &["characterize", "set", "-o", "c"],
+        &["d0_0.png", "FIFO"],
+    );
+    std::fs::rename(d.join("set/descriptor.txt"), d.join("descriptor.txt")).unwrap();
+    mkfifo(&d.join("set/descriptor.txt"));
+    refused(
+        d,
+        &["characterize", "set", "-o", "c"],
+        &["descriptor.txt", "FIFO"],
+    );
+}
+
+#[test]
+fn the_library_refuses_zero_frames_and_wrapping_frame_indices() {
+    // The CLI refuses `--frames 0` itself; the library (and through it the Python
+    // package) must too, not quietly run one frame.
+    use eoir::scene::synthetic::{self, SceneParams};
+    let small = ["detector.rows=8".to_string(), "detector.cols=8".to_string()];
+    let config = eoir::sensor::presets::load("multimir", &[], &small).unwrap();
+    let sensor = eoir::sensor::Sensor::build(&config).unwrap();
+    let params = SceneParams {
+        rows: 8,
+        cols: 8,
+        wavelength_um: SceneParams::uniform_grid(4.4, 5.4, 5).unwrap(),
+        fov_x_deg: (sensor.ifov_rad() * 8.0).to_degrees(),
+        ..SceneParams::default()
+    };
+    let cube = synthetic::generate("blackbody", &params).unwrap();
+    let mut reader = eoir::io::MemoryCube::new(cube);
+    let options = eoir::pipeline::RunOptions {
+        frames: 0,
+        calibration: None,
+        ..Default::default()
+    };
+    let e = eoir::pipeline::run(&sensor, &mut reader, &options, |_, _| {}).unwrap_err();
+    assert!(e.to_string().contains("`frames` = 0"), "{e}");
+    // A first frame index whose sequence would wrap past 2⁶⁴ − 1.
+    let options = eoir::pipeline::RunOptions {
+        frames: 2,
+        first_frame: u64::MAX - 1,
+        calibration: None,
+        ..Default::default()
+    };
+    let e = eoir::pipeline::run(&sensor, &mut reader, &options, |_, _| {}).unwrap_err();
+    assert!(e.to_string().contains("first_frame"), "{e}");
+}
+
+#[test]
+fn nan_is_an_error_in_every_band_the_sensor_sees_and_unread_outside_its_response() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // 3.0 µm (where multimir's response is zero) and 4.4–5.4 µm in 0.1 µm steps.
+    let wl: Vec<f64> = std::iter::once(3.0)
+        .chain((0..11).map(|i| 4.4 + 0.1 * i as f64))
+        .collect();
+    let header = |name: &str| {
+        let w: Vec<String> = wl.iter().map(|w| format!("{w:.3}")).collect();
+        std::fs::write(
+            d.join(format!("{name}.hdr")),
+            format!(
+                "ENVI\nsamples = 16\nlines = 16\nbands = {}\nheader offset = 0\nfile type = ENVI Standard\ndata type = 4\ninterleave = bsq\nbyte order = 0\nwavelength units = Micrometers\nwavelength = {{{}}}\neoir radiance units = W m-2 sr-1 um-1\neoir fov deg = {{0.23, 0.23}}\n",
+                wl.len(),
+                w.join(", ")
+            ),
+        )
+        .unwrap();
+    };
+    let data = |nan_band: usize| -> Vec<u8> {
+        (0..wl.len())
+            .flat_map(|b| {
+                let v = if b == nan_band { f32::NAN } else { 0.5 };
+                std::iter::repeat_n(v, 256)
+            })
+            .flat_map(f32::to_le_bytes)
+            .collect()
+    };
+    header("outside");
+    std::fs::write(d.join("outside.img"), data(0)).unwrap();
+    let o = eoir(d, &run_args("outside.hdr", "out", &[]));
+    assert_eq!(
+        o.code,
+        Some(0),
+        "NaN at 3.0 µm is outside the response: {}",
+        o.stderr
+    );
+    header("inside");
+    std::fs::write(d.join("inside.img"), data(5)).unwrap();
+    refused(d, &run_args("inside.hdr", "out2", &[]), &["inside", "NaN"]);
 }

@@ -294,6 +294,7 @@ fn radiance_image_inverts_beyond_dn_saturation() {
     let out = dir.path().join("t");
     let o = eoir()
         .args(["temperature", "--sensor", "multimir"])
+        .args(["--set", "detector.rows=4", "--set", "detector.cols=5"])
         .arg(&input)
         .arg("-o")
         .arg(&out)

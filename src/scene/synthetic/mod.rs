@@ -81,6 +81,12 @@ pub const MAX_OVERSAMPLING: usize = 64;
 /// 2³² f32 values are 16 GiB.
 pub const MAX_CUBE_VALUES: u64 = 1 << 32;
 
+/// Working set of the scene generators per (oversampled) pixel besides the cube, bytes:
+/// the thermal scene's per-pixel `(Region, Recipe, f32)` list, held twice at the peak,
+/// and its region, temperature and vegetation maps (about 90 B; the
+/// `scene_working_set_bound` test in `thermal` checks it), or a target's f64 coverage map.
+pub const SCENE_BYTES_PER_PIXEL: u64 = 128;
+
 /// Highest temperature a scene accepts, K.
 pub const MAX_TEMPERATURE_K: f64 = 10_000.0;
 
@@ -220,6 +226,25 @@ impl SceneParams {
                 format!("at most {MAX_CUBE_VALUES} values (16 GiB of f32)"),
             ));
         }
+        // The cube (f32) and the generators' per-pixel working set, before either exists.
+        let pixels = crate::limits::checked_count(
+            "the synthetic scene",
+            &[
+                ("rows", self.rows as u64),
+                ("cols", self.cols as u64),
+                ("oversampling²", k as u64 * k as u64),
+            ],
+        )?;
+        let bytes = (values as u64)
+            .checked_mul(4)
+            .and_then(|c| c.checked_add(pixels.checked_mul(SCENE_BYTES_PER_PIXEL)?));
+        crate::limits::check_bytes(
+            "the synthetic scene",
+            &format!(
+                "{values} f32 values + {pixels} pixels × {SCENE_BYTES_PER_PIXEL} B working set"
+            ),
+            bytes.unwrap_or(u64::MAX),
+        )?;
         Ok(())
     }
 
@@ -241,6 +266,16 @@ impl SceneParams {
                 format!("a wavelength >= lo_um = {lo_um} µm"),
             )),
             _ if hi_um > lo_um => {
+                // Every band holds at least one value of the cube, and the grid itself is
+                // bounded by the memory budget, before it is allocated.
+                if bands as u64 > MAX_CUBE_VALUES {
+                    return Err(Error::param(
+                        "bands",
+                        bands,
+                        format!("at most {MAX_CUBE_VALUES} (the cube's value limit)"),
+                    ));
+                }
+                crate::limits::check_alloc("the wavelength grid", &[("bands", bands as u64)], 8)?;
                 let step = (hi_um - lo_um) / (bands - 1) as f64;
                 let mut v: Vec<f64> = (0..bands).map(|i| lo_um + step * i as f64).collect();
                 v[bands - 1] = hi_um;

@@ -599,3 +599,21 @@ pub fn thermal_scene(p: &SceneParams, env: &Environment) -> Result<ThermalScene>
 // ---------------------------------------------------------------------------------------
 // Test patterns
 // ---------------------------------------------------------------------------------------
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The thermal scene holds its per-pixel list twice at the peak (the per-row lists and
+    /// the flattened list), then the region, temperature and vegetation maps: that must fit
+    /// the per-pixel working set the memory budget assumes.
+    #[test]
+    fn scene_working_set_bound() {
+        let list = std::mem::size_of::<(Region, Recipe, f32)>();
+        let maps = std::mem::size_of::<Region>() + 2 * std::mem::size_of::<f32>();
+        assert!(
+            (2 * list + maps) as u64 <= crate::scene::synthetic::SCENE_BYTES_PER_PIXEL,
+            "2 × {list} + {maps} B"
+        );
+    }
+}
