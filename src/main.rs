@@ -29,7 +29,7 @@ enum Command {
     /// Write a built-in synthetic scene as a radiance cube sized to a sensor (any format).
     Scene(scene::SceneArgs),
     /// Convert a DN image (or in-band radiance) to apparent temperature through a sensor.
-    Temperature(run::TemperatureArgs),
+    Temperature(cli::temperature::TemperatureArgs),
     /// Print or plot the transfer functions (MTF) of a sensor along the x axis.
     Mtf(mtf::MtfArgs),
     /// Sharpen a recorded image with the sensor's own transfer function (Wiener filter).
@@ -54,7 +54,7 @@ fn main() -> ExitCode {
         Command::Run(args) => run::run(args),
         Command::Demo(args) => run::demo(args),
         Command::Scene(args) => scene::scene(args),
-        Command::Temperature(args) => run::temperature(args),
+        Command::Temperature(args) => cli::temperature::temperature(args),
         Command::Mtf(args) => mtf::mtf(args),
         Command::Sensors(args) => sensors::sensors(args),
         Command::Restore(args) => restore::restore(args),

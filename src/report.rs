@@ -32,6 +32,9 @@ pub struct RunReport {
     pub sensor: String,
     /// Seed of every random effect.
     pub seed: u64,
+    /// Hash of the resolved sensor ([`crate::calibration::instance::sensor_hash`]); with
+    /// the seed it identifies the sensor instance (fixed pattern) of the DN.
+    pub sensor_hash: String,
     /// The input cube.
     pub input: InputReport,
     /// How the scene grid maps onto the detector.
@@ -310,6 +313,7 @@ impl RunReport {
             eoir_version: env!("CARGO_PKG_VERSION").to_string(),
             sensor: sensor.name.clone(),
             seed: f.seed,
+            sensor_hash: crate::calibration::instance::sensor_hash(sensor).unwrap_or_default(),
             input: InputReport {
                 name: f.input_name.to_string(),
                 bands: f.meta.bands(),

@@ -11,6 +11,7 @@ pub mod restore;
 pub mod run;
 pub mod scene;
 pub mod sensors;
+pub mod temperature;
 
 /// Parses `H,V` (two numbers).
 pub fn parse_pair(text: &str, what: &str) -> Result<(f64, f64)> {

@@ -4,8 +4,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
-use eoir::calibration::{Calibration, CalibrationOptions};
-use eoir::detector::DetectorInstance;
 use eoir::io::output::ProductSet;
 use eoir::pipeline::{self, RunOptions};
 use eoir::scene::sizing;
@@ -74,6 +72,13 @@ pub struct RunArgs {
     /// Scene field of view `H,V` in degrees; wins over any field of view in the file.
     #[arg(long, value_name = "H,V")]
     fov_deg: Option<String>,
+    /// Blackbody calibration temperatures of a thermal sensor, K (default: the sensor
+    /// file's `[calibration] temperatures_k`, else about 10/50/90 % of full scale).
+    #[arg(long, value_name = "T1,T2,...", value_delimiter = ',')]
+    calibration_temperatures: Vec<f64>,
+    /// Fail (exit non-zero, nothing written) when no temperature product can be made.
+    #[arg(long)]
+    require_temperature: bool,
     /// Radiance units of the input, overriding what the file states, e.g.
     /// `"W m-2 sr-1 nm-1"`, `"uW cm-2 sr-1 nm-1"` (AVIRIS), `"W/(m2 sr um)"`.
     #[arg(long, value_name = "UNITS")]
@@ -91,6 +96,13 @@ pub struct DemoArgs {
     output: PathBuf,
     #[command(flatten)]
     sensor: SensorArgs,
+    /// Blackbody calibration temperatures of a thermal sensor, K (default: the sensor
+    /// file's `[calibration] temperatures_k`, else about 10/50/90 % of full scale).
+    #[arg(long, value_name = "T1,T2,...", value_delimiter = ',')]
+    calibration_temperatures: Vec<f64>,
+    /// Fail (exit non-zero, nothing written) when no temperature product can be made.
+    #[arg(long)]
+    require_temperature: bool,
     /// Scene samples per detector pixel (integer).
     #[arg(long, default_value_t = sizing::DEFAULT_OVERSAMPLING)]
     oversampling: usize,
@@ -110,13 +122,22 @@ fn run_file(
     mut options: RunOptions,
     read: &eoir::io::ReadOptions,
     quiet: bool,
+    require_temperature: bool,
 ) -> Result<pipeline::RunOutput> {
+    if require_temperature && !sensor.is_thermal() {
+        bail!(
+            "--require-temperature: sensor `{}` does not respond beyond 3 µm, so it has no apparent-temperature products",
+            sensor.name
+        );
+    }
     let mut reader = eoir::io::open_with(input, read)?;
-    // Calibration exposures: the NUC levels, the non-uniformity check, the measured NETD
-    // (two stacks), each of frames_per_level frames.
+    // Calibration work in frame exposures: one per level average and one for the
+    // non-uniformity check (each drawn in one pass), and the measured NETD's two stacks.
     let calibration_exposures = match &options.calibration {
         Some(c) if sensor.is_thermal() => {
-            ((c.temperatures_k.len() + 3) * c.frames_per_level) as u64
+            let levels = c.temperatures_k.len().max(c.degree + 2).max(3);
+            let d = &sensor.detector;
+            (levels + 1 + 2 * pipeline::calibrate::netd_frames(d.rows * d.cols)) as u64
         }
         _ => 0,
     };
@@ -132,6 +153,10 @@ fn run_file(
     let out = pipeline::run(sensor, reader.as_mut(), &options, |done, total| {
         progress.imaging(done, total)
     })?;
+    let no_temperature = pipeline::calibrate::missing_temperature(sensor, &out);
+    if let (true, Some(reason)) = (require_temperature, &no_temperature) {
+        bail!("--require-temperature: {reason}");
+    }
     progress.writing();
     out.write(output)?;
     progress.finish();
@@ -173,25 +198,11 @@ fn run_file(
             },
             r.timings_s.total,
         );
+        if let Some(reason) = &no_temperature {
+            println!("  NO TEMPERATURE PRODUCTS: {reason}");
+        }
     }
     Ok(out)
-}
-
-/// Calibration levels for a NUC of `degree`: at least degree + 2 blackbody temperatures
-/// spread over 280–320 K. Errors for a degree outside 0..=[`eoir::processing::nuc::MAX_DEGREE`].
-fn calibration_options(degree: usize) -> Result<CalibrationOptions> {
-    let max = eoir::processing::nuc::MAX_DEGREE;
-    if degree > max {
-        bail!("--nuc-degree {degree}: the NUC polynomial degree must be 0 to {max}");
-    }
-    let levels = (degree + 2).max(3);
-    Ok(CalibrationOptions {
-        temperatures_k: (0..levels)
-            .map(|i| 280.0 + 40.0 * i as f64 / (levels - 1) as f64)
-            .collect(),
-        degree,
-        ..Default::default()
-    })
 }
 
 /// Prints the final paths of a committed product set.
@@ -201,86 +212,6 @@ fn print_written(paths: &[PathBuf], quiet: bool) {
             println!("wrote {}", p.display());
         }
     }
-}
-
-/// Arguments of `eoir temperature`.
-#[derive(Debug, clap::Args)]
-pub struct TemperatureArgs {
-    /// The sensor that recorded the image.
-    #[command(flatten)]
-    sensor: SensorArgs,
-    /// Seed of the sensor instance that recorded the DN image (its fixed pattern).
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Degree of the NUC polynomial.
-    #[arg(long, default_value_t = 1)]
-    nuc_degree: usize,
-    /// Input: a 16-bit DN TIFF (as `eoir run` writes) or an f32 TIFF of in-band radiance.
-    input: PathBuf,
-    /// Output directory (writes temperature.tiff, and radiance.tiff for DN input).
-    #[arg(short, long)]
-    output: PathBuf,
-}
-
-/// `eoir temperature`: DN (through NUC, bad-pixel replacement and the sensor's response) or
-/// in-band radiance → apparent temperature.
-pub fn temperature(args: TemperatureArgs) -> Result<()> {
-    let sensor = args.sensor.load()?;
-    if !eoir::pipeline::is_thermal(&sensor) {
-        bail!(
-            "sensor `{}` does not respond beyond 3 µm: apparent temperature needs a thermal sensor",
-            sensor.name
-        );
-    }
-    // The input's size from its header, before the (costly) calibration is built: a
-    // FIFO, a bomb or a frame of another sensor is refused at once.
-    let (rows, cols) = eoir::io::raster::image_dimensions(&args.input)?;
-    if (rows, cols) != (sensor.detector.rows, sensor.detector.cols) {
-        bail!(
-            "{}: the image is {cols} × {rows} pixels (width × height) but sensor `{}` records {} × {}",
-            args.input.display(),
-            sensor.name,
-            sensor.detector.cols,
-            sensor.detector.rows
-        );
-    }
-    let model = sensor.detector();
-    let instance = DetectorInstance::new(model, args.seed)?;
-    let cal = Calibration::new(
-        &sensor,
-        model,
-        &instance,
-        &calibration_options(args.nuc_degree)?,
-    )?;
-    let (temperature, radiance, nan) = match eoir::io::raster::read_tiff_u16(&args.input) {
-        Ok(dn) => {
-            let corrected = cal.correct(dn.view())?;
-            let (t, l, nan) = cal.to_temperature(corrected.view());
-            (t, Some(l), nan)
-        }
-        Err(_) => {
-            let l = eoir::io::raster::read_tiff_f32(&args.input)
-                .with_context(|| "input is neither a 16-bit DN TIFF nor an f32 radiance TIFF")?;
-            let lut = cal.radiance_lut();
-            let t = l.mapv(|v| lut.temperature_or_nan(v as f64));
-            let nan = t.iter().filter(|v| v.is_nan()).count();
-            (t, None, nan)
-        }
-    };
-    let set = ProductSet::begin(&args.output)?;
-    let p = set.staging_dir().join("temperature.tiff");
-    eoir::io::raster::write_tiff_f32(&p, temperature.mapv(|v| v as f32).view())?;
-    if let Some(l) = radiance {
-        let p = set.staging_dir().join("radiance.tiff");
-        eoir::io::raster::write_tiff_f32(&p, l.mapv(|v| v as f32).view())?;
-    }
-    print_written(&set.commit()?, false);
-    let (lo, hi) = cal.lut_range_k();
-    println!(
-        "{nan} pixels outside the calibrated range {lo:.1}–{hi:.1} K (NaN); NETD at 300 K {:.1} mK",
-        cal.netd_analytic_k(300.0).unwrap_or(f64::NAN) * 1e3
-    );
-    Ok(())
 }
 
 /// `eoir run`.
@@ -311,7 +242,10 @@ pub fn run(args: RunArgs) -> Result<()> {
         seed: args.seed,
         geometry,
         frames: args.frames,
-        calibration: Some(calibration_options(args.nuc_degree)?),
+        calibration: Some(crate::cli::temperature::calibration_options(
+            args.nuc_degree,
+            &args.calibration_temperatures,
+        )?),
         fft_precision: args
             .fft_precision
             .parse()
@@ -328,6 +262,7 @@ pub fn run(args: RunArgs) -> Result<()> {
             options,
             &read,
             args.quiet,
+            args.require_temperature,
         )?;
         print_written(&set.commit()?, args.quiet);
         return Ok(());
@@ -386,6 +321,7 @@ pub fn run(args: RunArgs) -> Result<()> {
             options.clone(),
             &read,
             args.quiet,
+            args.require_temperature,
         )?;
         if shared_gain.is_none() {
             shared_gain = Some(out.report.detector.gain_dn_per_e);
@@ -447,12 +383,17 @@ pub fn demo(args: DemoArgs) -> Result<()> {
         set.staging_dir(),
         RunOptions {
             seed: args.seed,
+            calibration: Some(crate::cli::temperature::calibration_options(
+                1,
+                &args.calibration_temperatures,
+            )?),
             // The report names the scene where it ends up, not its staging place.
             input_name: set.final_path(&scene_path).display().to_string(),
             ..Default::default()
         },
         &eoir::io::ReadOptions::default(),
         args.quiet,
+        args.require_temperature,
     )?;
     print_written(&set.commit()?, args.quiet);
     Ok(())

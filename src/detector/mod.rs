@@ -479,6 +479,12 @@ impl DetectorInstance {
         &self.defects
     }
 
+    /// The fixed DN of every stuck pixel (meaningful where the defect map says stuck);
+    /// `None` when the instance has no stuck pixel.
+    pub fn stuck_dn_map(&self) -> Option<&Array2<u16>> {
+        self.stuck_dn.as_ref()
+    }
+
     /// Simulates frame `frame_index` for the mean signal electrons `mean_e` (rows × cols,
     /// from the imaging engine; negative values, e.g. resampling ringing, count as 0) and
     /// returns its DN. The temporal noise is keyed by the exposure

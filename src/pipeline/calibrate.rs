@@ -17,10 +17,27 @@ const RADIANCE_DEFINITION: &str = "in-band radiance: integral of S(λ) L(λ) dλ
 /// range, so the check temperature is not one of the fitted levels.
 const CHECK_OFFSET_K: f64 = 0.37;
 
-/// Temperature (K), step (K) and frames of the NETD figures in the report.
+/// Temperature (K) and step (K) of the NETD figures in the report.
 const NETD_AT_K: f64 = 300.0;
 const NETD_DELTA_K: f64 = 0.25;
-const NETD_FRAMES: usize = 16;
+
+/// Wanted relative standard error of the measured NETD.
+const NETD_RELATIVE_PRECISION: f64 = 0.005;
+
+/// Most frames per temperature of the measured NETD.
+const NETD_MAX_FRAMES: usize = 16;
+
+/// Frames per temperature for the measured NETD of an array of `pixels` pixels: the pooled
+/// temporal variance has (F − 1)·N degrees of freedom, so its relative standard error is
+/// √(2/((F − 1)N)) and that of NETD = σ/R half of it (the responsivity, a mean over N
+/// pixels of F-frame averages, adds only √(2/F)·NETD/(ΔT√N), ~2e-4 here). F is the
+/// smallest count reaching [`NETD_RELATIVE_PRECISION`] (2 for a 384 × 288 array, 5 for
+/// 64 × 80), at most [`NETD_MAX_FRAMES`].
+pub fn netd_frames(pixels: usize) -> usize {
+    let dof_needed = 2.0 / (4.0 * NETD_RELATIVE_PRECISION * NETD_RELATIVE_PRECISION);
+    let f = 1.0 + (dof_needed / pixels.max(1) as f64).ceil();
+    (f as usize).clamp(2, NETD_MAX_FRAMES)
+}
 
 /// What the calibration stage returns: its report, or why it could not calibrate.
 #[derive(Debug)]
@@ -48,24 +65,55 @@ impl CalibrationOutcome {
     }
 }
 
-/// The error for a calibration whose flat fields give no usable pixels: with very few
-/// ADC bits (`detector.bits` = 1 or 2) the 280–320 K blackbody levels all quantise to the
-/// same DN, so no NUC, radiance or temperature can be derived. Names the setting.
-fn calibration_failed(sensor: &Sensor, e: Error) -> Error {
+/// Start of the warning of a failed calibration (what [`missing_temperature`] reports).
+pub const FAILURE_PREFIX: &str = "no radiance/temperature products: ";
+
+/// ADC resolutions (bits) at or below which a failed calibration names `detector.bits`.
+const FEW_BITS: u32 = 4;
+
+/// The warning for a calibration that failed with `e`: the reason, and with very few ADC
+/// bits (`detector.bits` ≤ 4) the hint that the blackbody levels quantise to a handful of
+/// DN and cannot be told apart.
+fn failure_warning(sensor: &Sensor, e: &Error) -> String {
     let bits = sensor.config().detector.bits;
-    Error::OutOfRange(format!(
-        "the radiometric calibration of `{}` found no usable pixels ({e}); with detector.bits = {} ({} DN levels) the blackbody calibration levels cannot be told apart — use more ADC bits (at least 3 for this sensor), or call the library with RunOptions::calibration = None for DN-only products",
-        sensor.config().name,
-        bits,
-        1u64 << bits.min(63)
-    ))
+    let hint = if bits <= FEW_BITS {
+        format!(
+            "; with detector.bits = {bits} ({} DN levels) the blackbody calibration levels cannot be told apart — use more ADC bits",
+            1u64 << bits.min(63)
+        )
+    } else {
+        String::new()
+    };
+    format!(
+        "{FAILURE_PREFIX}the radiometric calibration of `{}` failed: {e}{hint}",
+        sensor.config().name
+    )
+}
+
+/// Why a run of a thermal sensor has no temperature products (the calibration failure's
+/// reason), or `None` when every frame has them or the sensor is not thermal: for the
+/// prominent summary line and `--require-temperature`.
+pub fn missing_temperature(sensor: &Sensor, out: &super::RunOutput) -> Option<String> {
+    if !sensor.is_thermal() || out.frames.iter().all(|f| f.temperature.is_some()) {
+        return None;
+    }
+    Some(
+        out.warnings
+            .iter()
+            .find_map(|w| w.strip_prefix(FAILURE_PREFIX))
+            .unwrap_or("the radiometric calibration was not run")
+            .to_string(),
+    )
 }
 
 /// Calibrates `exposure`'s instance with `options` (when given and the sensor is thermal)
 /// and fills `radiance` and `temperature` of every frame.
 ///
-/// Errors: a frame of the wrong shape (cannot happen for frames of this run) or a failure
-/// of the residual non-uniformity check.
+/// A calibration that cannot be made (no usable range, clipped levels, too few ADC bits,
+/// no usable pixels) is [`CalibrationOutcome::Failed`] with the reason: the DN products
+/// are still made.
+///
+/// Errors: a frame of the wrong shape (cannot happen for frames of this run).
 pub fn calibrate_frames(
     sensor: &Sensor,
     exposure: &Exposure,
@@ -76,13 +124,17 @@ pub fn calibrate_frames(
         return Ok(CalibrationOutcome::Skipped);
     };
     let instance = exposure.instance();
-    let cal = match Calibration::new(sensor, exposure.model(), instance, opts) {
-        Ok(cal) => cal,
-        Err(e) => {
-            return Ok(CalibrationOutcome::Failed(format!(
-                "no radiance/temperature products: calibration failed: {e}"
-            )))
-        }
+    let checked = Calibration::new(sensor, exposure.model(), instance, opts).and_then(|cal| {
+        let temps = cal.temperatures_k();
+        let lo = temps.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = temps.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let t_check = 0.5 * (lo + hi) + CHECK_OFFSET_K;
+        let rnu = cal.residual_nonuniformity(instance, t_check)?;
+        Ok((cal, t_check, rnu))
+    });
+    let (cal, t_check, (raw, corrected)) = match checked {
+        Ok(c) => c,
+        Err(e) => return Ok(CalibrationOutcome::Failed(failure_warning(sensor, &e))),
     };
     let mut nan_total = 0;
     for f in frames.iter_mut() {
@@ -93,10 +145,6 @@ pub fn calibrate_frames(
         f.radiance = Some(l.mapv(|v| v as f32));
     }
     let temps = cal.temperatures_k();
-    let t_check = 0.5 * (temps[0] + temps[temps.len() - 1]) + CHECK_OFFSET_K;
-    let (raw, corrected) = cal
-        .residual_nonuniformity(instance, t_check)
-        .map_err(|e| calibration_failed(sensor, e))?;
     let temporal_floor = exposure
         .model()
         .temporal_noise_dn(cal.blackbody_electrons(t_check)?)
@@ -120,7 +168,7 @@ pub fn calibrate_frames(
             instance,
             NETD_AT_K,
             NETD_DELTA_K,
-            NETD_FRAMES,
+            netd_frames(exposure.model().rows() * exposure.model().cols()),
             Some(cal.bad_pixels()),
         )
         .ok(),

@@ -32,7 +32,8 @@ impl RunOutput {
 
     /// Writes the products into `dir` (created if needed), each file atomically:
     /// `dn.tiff` (u16), `dn.png` (8-bit display, [`crate::display::dn_display`]), `electrons_mean.tiff` and
-    /// `electrons_mean.exr` (f32), `config.toml` (the resolved sensor), `report.json`, and
+    /// `electrons_mean.exr` (f32), `config.toml` (the resolved sensor), `instance.json` (seed
+    /// and sensor hash, [`crate::calibration::instance`]), `report.json`, and
     /// with the `hdf5` feature `products.h5` holding every product. A sequence writes
     /// `frame_NNNN_` prefixed DN and electron files. Returns the paths written.
     pub fn write(&self, dir: &Path) -> Result<Vec<PathBuf>> {
@@ -157,6 +158,9 @@ impl RunOutput {
         let text = self.sensor.to_toml_string()?;
         crate::io::atomic_write(&p, |w| crate::io::write_all(w, text.as_bytes(), &p))?;
         written.push(p);
+        let instance =
+            crate::calibration::instance::SensorInstance::of(&self.sensor, self.report.seed)?;
+        written.push(instance.write(dir)?);
         let p = dir.join("report.json");
         let text = serde_json::to_string_pretty(&self.report)
             .map_err(|e| Error::format(&p, e.to_string()))?;

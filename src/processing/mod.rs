@@ -88,18 +88,20 @@ pub(crate) fn check_shape(
     Ok(())
 }
 
-/// Median of a slice (sorted in place; NaN must have been removed). The mean of the two
-/// middle values for an even count; `None` when empty.
+/// Median of a slice (reordered in place by selection, O(n); NaN must have been removed).
+/// The mean of the two middle values for an even count; `None` when empty.
 pub(crate) fn median_in_place(values: &mut [f64]) -> Option<f64> {
     let n = values.len();
     if n == 0 {
         return None;
     }
-    values.sort_unstable_by(f64::total_cmp);
+    let (lower, upper, _) = values.select_nth_unstable_by(n / 2, f64::total_cmp);
+    let upper = *upper;
     Some(if n % 2 == 1 {
-        values[n / 2]
+        upper
     } else {
-        0.5 * (values[n / 2 - 1] + values[n / 2])
+        // The other middle value is the largest of the lower half.
+        0.5 * (lower.iter().copied().fold(f64::NEG_INFINITY, f64::max) + upper)
     })
 }
 

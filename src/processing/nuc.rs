@@ -173,37 +173,44 @@ impl NucCoefficients {
         let signal_centre = round_sig(centre);
         let signal_scale = if spread > 0.0 { round_sig(spread) } else { 1.0 };
         let (rows, cols) = shape;
-        let npix = rows * cols;
         let references: Vec<f64> = levels.iter().map(|l| l.0).collect();
         let frames: Vec<ArrayView2<f64>> = levels.iter().map(|l| l.1).collect();
 
-        let fits: Vec<(Vec<f64>, bool)> = (0..npix)
+        // One row per task, with per-thread scratch: `[col, k]` coefficients and the
+        // rank-deficient columns of each row.
+        let n1 = degree + 1;
+        let fits: Vec<(Vec<f64>, Vec<usize>)> = (0..rows)
             .into_par_iter()
             .map_init(
-                || Vec::with_capacity(frames.len()),
-                |z, p| {
-                    let (i, j) = (p / cols, p % cols);
-                    z.clear();
-                    z.extend(
-                        frames
-                            .iter()
-                            .map(|f| (f[[i, j]] - signal_centre) / signal_scale),
-                    );
-                    fit_polynomial(z, &references, degree)
+                || (FitScratch::default(), Vec::with_capacity(frames.len())),
+                |(scratch, z), i| {
+                    let mut coef = vec![0.0; cols * n1];
+                    let mut deficient = Vec::new();
+                    for (j, a) in coef.chunks_exact_mut(n1).enumerate() {
+                        z.clear();
+                        z.extend(
+                            frames
+                                .iter()
+                                .map(|f| (f[[i, j]] - signal_centre) / signal_scale),
+                        );
+                        if !fit_polynomial(z, &references, degree, scratch, a) {
+                            deficient.push(j);
+                        }
+                    }
+                    (coef, deficient)
                 },
             )
             .collect();
 
-        let mut coefficients = Array3::zeros((degree + 1, rows, cols));
+        let mut coefficients = Array3::zeros((n1, rows, cols));
         let mut rank_deficient = Vec::new();
-        for (p, (a, full)) in fits.into_iter().enumerate() {
-            let (i, j) = (p / cols, p % cols);
-            for (k, v) in a.into_iter().enumerate() {
-                coefficients[[k, i, j]] = v;
+        for (i, (coef, deficient)) in fits.into_iter().enumerate() {
+            for (j, a) in coef.chunks_exact(n1).enumerate() {
+                for (k, &v) in a.iter().enumerate() {
+                    coefficients[[k, i, j]] = v;
+                }
             }
-            if !full {
-                rank_deficient.push((i, j));
-            }
+            rank_deficient.extend(deficient.into_iter().map(|j| (i, j)));
         }
         Ok(NucCoefficients {
             degree,
@@ -424,59 +431,68 @@ fn sidecar_path(path: &Path) -> Result<PathBuf> {
     Ok(path.with_extension("json"))
 }
 
+/// Per-thread working storage of [`fit_polynomial`] (no allocation per pixel).
+#[derive(Debug, Default)]
+struct FitScratch {
+    /// Orthonormal columns, `q[k·L + i]`.
+    q: Vec<f64>,
+    /// Column being orthogonalised.
+    v: Vec<f64>,
+    /// R, `r[k·(N+1) + j]` = entry (j, k).
+    r: Vec<f64>,
+}
+
 /// Least-squares polynomial `y ≈ Σ_k a_k zᵏ`, k ≤ `degree`, by QR (modified Gram–Schmidt,
-/// two passes) of the Vandermonde matrix. Columns that are (numerically) dependent on the
-/// lower powers end the basis: the returned coefficients of higher powers are 0 and the
-/// flag is false. Non-finite input gives NaN coefficients and false.
-fn fit_polynomial(z: &[f64], y: &[f64], degree: usize) -> (Vec<f64>, bool) {
+/// two passes) of the Vandermonde matrix, written to `a` (length `degree + 1`). Columns
+/// that are (numerically) dependent on the lower powers end the basis: the coefficients of
+/// higher powers are 0 and the result is false. Non-finite input gives NaN coefficients
+/// and false.
+fn fit_polynomial(z: &[f64], y: &[f64], degree: usize, w: &mut FitScratch, a: &mut [f64]) -> bool {
     let l = z.len();
+    let n1 = degree + 1;
     if z.iter().chain(y).any(|v| !v.is_finite()) {
-        return (vec![f64::NAN; degree + 1], false);
+        a.fill(f64::NAN);
+        return false;
     }
-    let mut q: Vec<Vec<f64>> = Vec::with_capacity(degree + 1);
-    // r[k][j] for j ≤ k: column k of R.
-    let mut r: Vec<Vec<f64>> = Vec::with_capacity(degree + 1);
+    w.q.clear();
+    w.r.clear();
+    w.r.resize(n1 * n1, 0.0);
+    let mut m = 0;
     let mut full = true;
     for k in 0..=degree {
-        let mut v: Vec<f64> = z.iter().map(|&x| x.powi(k as i32)).collect();
-        let scale = (v.iter().map(|x| x * x).sum::<f64>().sqrt()).max((l as f64).sqrt());
-        let mut rk = vec![0.0; k + 1];
+        w.v.clear();
+        w.v.extend(z.iter().map(|&x| x.powi(k as i32)));
+        let scale = (w.v.iter().map(|x| x * x).sum::<f64>().sqrt()).max((l as f64).sqrt());
         for _pass in 0..2 {
-            for (j, qj) in q.iter().enumerate() {
-                let d: f64 = qj.iter().zip(&v).map(|(a, b)| a * b).sum();
-                rk[j] += d;
-                for (vi, qi) in v.iter_mut().zip(qj) {
+            for j in 0..m {
+                let qj = &w.q[j * l..(j + 1) * l];
+                let d: f64 = qj.iter().zip(&w.v).map(|(a, b)| a * b).sum();
+                w.r[k * n1 + j] += d;
+                for (vi, qi) in w.v.iter_mut().zip(qj) {
                     *vi -= d * qi;
                 }
             }
         }
-        let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let norm = w.v.iter().map(|x| x * x).sum::<f64>().sqrt();
         if norm.is_nan() || norm <= RANK_TOL * scale {
             full = false;
             break;
         }
-        rk[k] = norm;
-        for vi in v.iter_mut() {
-            *vi /= norm;
-        }
-        q.push(v);
-        r.push(rk);
+        w.r[k * n1 + k] = norm;
+        w.q.extend(w.v.iter().map(|vi| vi / norm));
+        m += 1;
     }
     // Solve R a = Qᵀ y by back substitution.
-    let m = q.len();
-    let qty: Vec<f64> = q
-        .iter()
-        .map(|qk| qk.iter().zip(y).map(|(a, b)| a * b).sum())
-        .collect();
-    let mut a = vec![0.0; degree + 1];
+    a.fill(0.0);
     for k in (0..m).rev() {
-        let mut s = qty[k];
-        for j in k + 1..m {
-            s -= r[j][k] * a[j];
+        let qk = &w.q[k * l..(k + 1) * l];
+        let mut s: f64 = qk.iter().zip(y).map(|(a, b)| a * b).sum();
+        for (j, aj) in a.iter().enumerate().take(m).skip(k + 1) {
+            s -= w.r[j * n1 + k] * aj;
         }
-        a[k] = s / r[k][k];
+        a[k] = s / w.r[k * n1 + k];
     }
-    (a, full)
+    full
 }
 
 /// Residual non-uniformity of a (corrected) flat-field frame: spatial standard deviation

@@ -208,6 +208,39 @@ pub struct AtmosphereConfig {
     pub transmission: SpectrumConfig,
 }
 
+/// `[calibration]`: the radiometric calibration of a thermal sensor (crate::calibration).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CalibrationConfig {
+    /// Blackbody reference temperatures, K (at least two distinct, each finite and > 0).
+    /// Absent: chosen from the sensor's own range (about 10/50/90 % of full scale).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub temperatures_k: Option<Vec<f64>>,
+}
+
+impl CalibrationConfig {
+    /// Checks the temperatures, naming the field.
+    pub fn validate(&self) -> Result<()> {
+        let Some(t) = &self.temperatures_k else {
+            return Ok(());
+        };
+        for (i, &v) in t.iter().enumerate() {
+            require_positive(&format!("calibration.temperatures_k[{i}]"), v)?;
+        }
+        let mut d = t.clone();
+        d.sort_by(f64::total_cmp);
+        d.dedup();
+        if d.len() < 2 {
+            return Err(Error::param(
+                "calibration.temperatures_k",
+                format!("{t:?}"),
+                "at least two distinct blackbody temperatures in K",
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// `[cfa]`: a colour filter array (Bayer mosaic) over the detector. Each pixel sees the
 /// chain's response times the transmission of its own colour filter; see [`crate::cfa`]
 /// for mosaicking and demosaicking.
@@ -274,6 +307,9 @@ pub struct SensorConfig {
     /// Colour filter array (a Bayer sensor); absent for a monochrome sensor.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cfa: Option<CfaConfig>,
+    /// Radiometric calibration (`[calibration]`, thermal sensors).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<CalibrationConfig>,
     /// The preset options this description was resolved with (`--option name=value`, or
     /// the preset's defaults), recorded for provenance; informational only.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
@@ -377,6 +413,9 @@ impl SensorConfig {
 
     /// Checks every value against its physical range.
     pub fn validate(&self) -> Result<()> {
+        if let Some(c) = &self.calibration {
+            c.validate()?;
+        }
         let o = &self.optics;
         require_positive("optics.focal_length_m", o.focal_length_m)?;
         require_positive("optics.f_number", o.f_number)?;

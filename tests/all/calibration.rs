@@ -2,7 +2,8 @@
 //! bad pixels and the way back from DN to apparent temperature, on a 64 × 80 MultimIR
 //! (filter 4, 4.55–5.2 µm, 100 mm F/2) with PRNU, DSNU and read noise.
 
-use eoir::calibration::{measured_netd, Calibration, CalibrationOptions};
+use eoir::calibration::flat_field::{self, InstanceMaps};
+use eoir::calibration::{measured_netd, Calibration, CalibrationOptions, FrameRoute};
 use eoir::detector::{DetectorInstance, DetectorModel};
 use eoir::radiometry::planck_spectral_radiance;
 use eoir::sensor::{presets, Sensor};
@@ -327,5 +328,120 @@ fn radiance_lut_is_not_limited_by_the_adc() {
         let l = cal.band_radiance(t);
         let back = cal.radiance_lut().temperature_or_nan(l);
         assert!((back - t).abs() < 1e-3, "{t} K -> {back} K");
+    }
+}
+
+/// The statistical level averages (exact per-pixel moments, one draw) against exposed
+/// frames, on an instance with PRNU, DSNU, per-pixel nonlinearity, read noise and dead, hot
+/// and stuck pixels: per pixel, (statistical − exposed) / √(2 var/M) must be N(0, 1) over
+/// the array (mean within 4/√N, variance within 10 %), with var the exposed frames' own
+/// temporal variance; the clipped masks agree exactly; and the NUC gains of the two routes
+/// differ by their combined statistical error only (standardised rms within 10 % of 1).
+#[test]
+fn statistical_route_matches_exposed_frames() {
+    let (s, model, inst) = setup(&[
+        "detector.nonlinearity.quadratic_mean_per_e=-2e-9",
+        "detector.nonlinearity.quadratic_sigma_per_e=5e-10",
+        "detector.defects.dead_fraction=0.003",
+        "detector.defects.hot_fraction=0.003",
+        "detector.defects.stuck_fraction=0.003",
+    ]);
+    let m = 16;
+    let e = Calibration::new(&s, &model, &inst, &CalibrationOptions::default())
+        .unwrap()
+        .blackbody_electrons(300.0)
+        .unwrap();
+    let mean_e = Array2::from_elem((64, 80), e);
+    let maps = InstanceMaps::of(&inst);
+    let (stat, stat_clip) = flat_field::average(&inst, &maps, &mean_e, m, 42).unwrap();
+    // Exposed: M frames, their mean and per-pixel temporal variance.
+    let frames: Vec<Array2<f64>> = (0..m)
+        .map(|i| {
+            inst.expose(&mean_e, 500 + i as u64)
+                .unwrap()
+                .mapv(|v| v as f64)
+        })
+        .collect();
+    let mean = frames
+        .iter()
+        .fold(Array2::<f64>::zeros((64, 80)), |a, f| a + f)
+        / m as f64;
+    let var = frames.iter().fold(Array2::<f64>::zeros((64, 80)), |a, f| {
+        a + (f - &mean).mapv(|d| d * d)
+    }) / (m - 1) as f64;
+    let max = model.max_dn();
+    let exposed_clip = frames
+        .iter()
+        .fold(Array2::from_elem((64, 80), false), |a, f| {
+            ndarray::Zip::from(&a)
+                .and(f)
+                .map_collect(|&c, &v| c || v <= 0.0 || v >= max)
+        });
+    let defects = inst.defect_map();
+    let mut z = Vec::new();
+    for ((p, &d), &v) in defects.indexed_iter().zip(var.iter()) {
+        if d != 0 {
+            // Defects read their fixed value in both routes.
+            assert_eq!(stat[p], mean[p], "defect {p:?}");
+            continue;
+        }
+        z.push((stat[p] - mean[p]) / (2.0 * v / m as f64).sqrt());
+    }
+    let (zm, zs, n) = mean_std(z.into_iter());
+    println!("standardised difference: mean {zm:.4}, sd {zs:.4} over {n} pixels");
+    assert!(zm.abs() < 4.0 / (n as f64).sqrt(), "mean {zm}");
+    // The sample variance of 16 frames scatters by √(2/15): the ratio's sd is ~1.04.
+    assert!((zs - 1.04).abs() < 0.1, "sd {zs}");
+    assert_eq!(stat_clip, exposed_clip);
+
+    // NUC gains of both routes against each other.
+    let cal = |route| {
+        let o = CalibrationOptions {
+            temperatures_k: vec![280.0, 300.0, 320.0],
+            route,
+            ..CalibrationOptions::default()
+        };
+        Calibration::new(&s, &model, &inst, &o).unwrap()
+    };
+    let (a, b) = (cal(FrameRoute::Statistical), cal(FrameRoute::Exposed));
+    let bad = a.bad_pixels().mask() | b.bad_pixels().mask();
+    // Fit noise of the slope: the NUC of a level average with σ_l/√M per pixel.
+    let (ga, gb) = (a.nuc().coefficients(), b.nuc().coefficients());
+    let d: Vec<f64> = bad
+        .indexed_iter()
+        .filter(|(_, &x)| !x)
+        .map(|((i, j), _)| ga[[1, i, j]] - gb[[1, i, j]])
+        .collect();
+    let (dm, ds, n) = mean_std(d.iter().copied());
+    // Predicted sd of one route's slope: the regression of 3 levels with noise σ_l/√M.
+    let (c, sc) = a.nuc().signal_normalisation();
+    let zs: Vec<f64> = [280.0, 300.0, 320.0]
+        .iter()
+        .map(|&t| (a.ideal_dn(t) - c) / sc)
+        .collect();
+    let zbar = zs.iter().sum::<f64>() / 3.0;
+    let sxx: f64 = zs.iter().map(|z| (z - zbar).powi(2)).sum();
+    // Noise in the signal z (σ_z,l = σ_l/(√M·scale) at level l) moves the fitted slope by
+    // −a1 Σ(z_l − z̄)δz_l / Sxx: Var a1 = a1² Σ(z_l − z̄)² σ_z,l² / Sxx²; two independent
+    // routes differ by √2 times that.
+    let var_slope: f64 = [280.0, 300.0, 320.0]
+        .iter()
+        .zip(&zs)
+        .map(|(&t, z)| (z - zbar).powi(2) * noise_var(&a, &model, t) / m as f64 / (sc * sc))
+        .sum::<f64>()
+        / (sxx * sxx);
+    let a1 = ga[[1, 32, 40]];
+    let predicted = a1.abs() * (2.0 * var_slope).sqrt();
+    println!("slope differences: mean {dm:.3e}, sd {ds:.3e} (predicted {predicted:.3e}) over {n}");
+    assert!(dm.abs() < 4.0 * ds / (n as f64).sqrt());
+    assert!((ds / predicted - 1.0).abs() < 0.1, "{ds} vs {predicted}");
+    // Both flag every defect.
+    for (p, &d) in defects.indexed_iter() {
+        if d != 0 {
+            assert!(
+                a.bad_pixels().mask()[p] && b.bad_pixels().mask()[p],
+                "{p:?}"
+            );
+        }
     }
 }

@@ -646,10 +646,15 @@ fn non_finite_and_impossible_values_are_errors_naming_the_setting() {
             &["--fov-deg", "(0, 180)"],
         );
     }
-    // bits = 1: a thermal sensor cannot calibrate with 2 DN levels (clear message) …
+    // bits = 1: a thermal sensor cannot calibrate with 2 DN levels (clear message; the
+    // run itself makes DN-only products unless a temperature is required) …
     refused(
         d,
-        &run_args("s.hdr", "out", &["--set", "detector.bits=1"]),
+        &run_args(
+            "s.hdr",
+            "out",
+            &["--set", "detector.bits=1", "--require-temperature"],
+        ),
         &["detector.bits = 1", "more ADC bits"],
     );
     // … and DN-only products are still made with 1 bit by a visible camera.
@@ -749,7 +754,7 @@ fn sigint_while_writing_a_sequence_leaves_the_old_set_or_the_complete_new_one() 
     let new = products(&d.join("reference"), true);
     assert_eq!(
         old.len(),
-        150 * 8 + 7 + usize::from(cfg!(feature = "hdf5")), // + products.h5 with HDF5
+        150 * 8 + 8 + usize::from(cfg!(feature = "hdf5")), // + products.h5 with HDF5
         "{:?}",
         old.keys().take(5).collect::<Vec<_>>()
     );

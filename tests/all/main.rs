@@ -36,4 +36,5 @@ mod scenes;
 mod sensor_config;
 mod sequence_pieces;
 mod spectrum;
+mod temperature;
 mod third_party;

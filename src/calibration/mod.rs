@@ -1,22 +1,22 @@
 //! Radiometric calibration through the simulated sensor: "the way back" from DN to
-//! apparent temperature and in-band radiance (issue 4; docs/design.md §1 processing, §4.9).
+//! apparent temperature and in-band radiance (issues 4, 9, 12; docs/design.md §1
+//! processing, §4.9).
 //!
 //! [`Calibration::new`] does what a laboratory does with a real camera: it views a
 //! uniform blackbody at a few temperatures *through the same detector instance* that
-//! records the scene (same fixed pattern and defects; fresh temporal noise, frame indices
-//! from [`CALIBRATION_FRAME_BASE`] on, far from scene frames), averages M frames per level
-//! and derives
+//! records the scene (same fixed pattern and defects; fresh temporal noise), averages M
+//! frames per level and derives
 //!
 //! 1. the per-pixel polynomial NUC ([`NucCoefficients`]) mapping each pixel's DN onto the
 //!    **ideal DN** of the mean detector model, `DN*(T) = model.expected_dn(μ_e(T))`, with
 //!    `μ_e(T) = camera_equation.electrons_blackbody(T, S)` (docs/design.md §4.1; S the spectral
 //!    response τ_filter τ_optics τ_atm η). A uniform blackbody gives uniform mean electrons
-//!    (blur preserves the mean); when `optics.cos4` is on, each pixel's electrons are
-//!    multiplied by its cos⁴θ (θ the off-axis angle of the pixel centre, as the imaging
-//!    engine does), and because the reference stays the on-axis DN*, the NUC also flattens
-//!    the cos⁴ roll-off: corrected DN are "on-axis equivalent";
+//!    (blur preserves the mean, so no imaging is needed); when `optics.cos4` is on, each
+//!    pixel's electrons are multiplied by its cos⁴θ (θ the off-axis angle of the pixel
+//!    centre, as the imaging engine does), and because the reference stays the on-axis DN*,
+//!    the NUC also flattens the cos⁴ roll-off: corrected DN are "on-axis equivalent";
 //! 2. the bad-pixel map: [`bad_pixels::detect`] on the coldest and hottest level averages,
-//!    united with the pixels the NUC fit could not determine;
+//!    united with the pixels the NUC fit could not determine and those clipped at a level;
 //! 3. two lookup tables of the sensor's own blackbody response (docs/design.md §4.9):
 //!    `T → DN*(T)` (inverted for the apparent temperature) and `T → L_band(T)`, the
 //!    **in-band radiance** defined here as
@@ -26,28 +26,51 @@
 //!    i.e. the blackbody radiance weighted by the normalised spectral response (peak 1), so
 //!    that for a flat-topped band it is the radiance within the band.
 //!
-//! The radiance table covers the whole `lut_range_k` (radiance is not limited by the
-//! ADC). The DN table covers `lut_range_k` trimmed to where DN* rises strictly: above the
-//! temperature at which the ideal pixel reaches full scale (ADC or full well) DN* is flat
-//! and no temperature can be recovered. Corrected values outside the table become NaN and
-//! are counted; raw DN at the ADC limits (0 or 2^bits − 1) are clipped measurements and
-//! also become NaN (unless the pixel is a flagged defect, which is replaced), so a
-//! saturated pixel never yields a wrong temperature.
+//! **Reference temperatures** ([`CalibrationOptions::temperatures_k`]): given explicitly,
+//! else the sensor file's `[calibration] temperatures_k`, else chosen from the sensor's own
+//! range at about 10/50/90 % of full scale ([`levels`]).
+//!
+//! **The level averages** ([`FrameRoute`]): by default each M-frame average is drawn in one
+//! pass from its exact per-pixel mean and variance through the instance
+//! ([`flat_field`]: fixed pattern, nonlinearity, shot and read noise, rounding, defects),
+//! which costs one frame whatever M is; [`FrameRoute::Exposed`] exposes every frame
+//! ([`DetectorInstance::expose`], frame indices from [`CALIBRATION_FRAME_BASE`]) and
+//! averages, as a laboratory would; the two agree within their statistical error (tests
+//! `calibration::statistical_route_matches_exposed_frames`).
+//!
+//! The radiance table spans [`CalibrationOptions::radiance_range_k`] (150–1000 K by
+//! default: radiance is not limited by the ADC). The DN table covers `lut_range_k` trimmed
+//! to where DN* rises strictly: above the temperature at which the ideal pixel reaches full
+//! scale (ADC or full well) DN* is flat and no temperature can be recovered. Corrected
+//! values outside the table become NaN and are counted; raw DN at the ADC limits (0 or
+//! 2^bits − 1) are clipped measurements and also become NaN (unless the pixel is a flagged
+//! defect, which is replaced), so a saturated pixel never yields a wrong temperature.
+
+pub mod flat_field;
+pub mod instance;
+pub mod levels;
+
+use std::sync::Arc;
 
 use ndarray::{Array2, Array3, ArrayView2, Axis, Zip};
 
+use crate::constants::{BOLTZMANN_K, PLANCK_H, SPEED_OF_LIGHT_C};
 use crate::detector::{DetectorInstance, DetectorModel};
 use crate::error::{require_positive, Error, Result};
 use crate::processing::bad_pixels::{self, BadPixelCriteria, BadPixelMap};
 use crate::processing::netd;
 use crate::processing::nuc::{self, NucCoefficients};
-use crate::radiometry::{band_radiance, CameraEquation, TemperatureLut};
+use crate::processing::temperature::HermiteTable;
+use crate::radiometry::{
+    band_radiance, integrate, planck_spectral_radiance, CameraEquation, TemperatureLut,
+};
 use crate::sensor::Sensor;
 use crate::spectrum::Spectrum;
 
-/// First frame index of the calibration frames: level l, frame i uses
-/// `CALIBRATION_FRAME_BASE + l·M + i` (independent temporal noise from scene frames, which
-/// count from 0).
+/// First frame index of the calibration frames of [`FrameRoute::Exposed`]: level l, frame
+/// i uses `CALIBRATION_FRAME_BASE + l·M + i` (independent temporal noise from scene frames,
+/// which count from 0); [`FrameRoute::Statistical`] keys its draws by the same index of the
+/// level's first frame.
 pub const CALIBRATION_FRAME_BASE: u64 = 1_000_000;
 /// First frame index of the flat fields of [`Calibration::residual_nonuniformity`].
 pub const VALIDATION_FRAME_BASE: u64 = 2_000_000;
@@ -63,28 +86,49 @@ const PEAK_SEARCH_POINTS: usize = 4096;
 /// Temperature step (K) used to test that DN* still rises at a temperature.
 const RISE_STEP_K: f64 = 0.01;
 
+/// How the M-frame average of a calibration level is obtained.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FrameRoute {
+    /// Drawn in one pass from the exact per-pixel mean and variance of the M-frame average
+    /// through the instance ([`flat_field`]); the cost does not grow with M.
+    #[default]
+    Statistical,
+    /// Every frame exposed through the instance and averaged (M exposures per level).
+    Exposed,
+}
+
 /// Options of [`Calibration::new`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct CalibrationOptions {
-    /// Blackbody temperatures of the calibration levels, K (at least `degree + 1`, distinct).
-    /// Default [280, 300, 320].
+    /// Blackbody temperatures of the calibration levels, K (at least `degree + 1`,
+    /// distinct). Empty (the default): the sensor file's `[calibration] temperatures_k`,
+    /// else `max(3, degree + 2)` levels from 10 % to 90 % of the sensor's usable range
+    /// ([`levels::automatic`]).
     pub temperatures_k: Vec<f64>,
     /// Frames averaged per level (M ≥ 1). Default 16.
     pub frames_per_level: usize,
     /// Degree N of the per-pixel NUC polynomial (1 = gain and offset). Default 1.
     pub degree: usize,
-    /// Temperature range of the lookup tables, K (trimmed at the top where the ideal pixel
-    /// saturates). Default (200, 500).
+    /// Temperature range of the DN lookup table, K (trimmed at the top where the ideal pixel
+    /// saturates). Default (200, 1000): below 200 K a mid-wave pixel's signal is under its
+    /// noise, so a DN there is better NaN than a temperature.
     pub lut_range_k: (f64, f64),
+    /// Temperature range of the in-band radiance table, K (not limited by the ADC).
+    /// Default (150, 1000).
+    pub radiance_range_k: (f64, f64),
+    /// How the level averages are obtained. Default [`FrameRoute::Statistical`].
+    pub route: FrameRoute,
 }
 
 impl Default for CalibrationOptions {
     fn default() -> Self {
         CalibrationOptions {
-            temperatures_k: vec![280.0, 300.0, 320.0],
+            temperatures_k: Vec::new(),
             frames_per_level: 16,
             degree: 1,
-            lut_range_k: (200.0, 500.0),
+            lut_range_k: (200.0, 1000.0),
+            radiance_range_k: (150.0, 1000.0),
+            route: FrameRoute::Statistical,
         }
     }
 }
@@ -92,21 +136,8 @@ impl Default for CalibrationOptions {
 impl CalibrationOptions {
     /// Checks every option, naming the field.
     pub fn validate(&self) -> Result<()> {
-        for (l, &t) in self.temperatures_k.iter().enumerate() {
-            require_positive(&format!("temperatures_k[{l}]"), t)?;
-        }
-        let mut sorted = self.temperatures_k.clone();
-        sorted.sort_by(f64::total_cmp);
-        sorted.dedup();
-        if sorted.len() < 2 || sorted.len() < self.degree + 1 {
-            return Err(Error::param(
-                "temperatures_k",
-                format!("{} distinct temperature(s)", sorted.len()),
-                format!(
-                    "at least max(2, degree + 1) = {} distinct blackbody temperatures",
-                    (self.degree + 1).max(2)
-                ),
-            ));
+        if !self.temperatures_k.is_empty() {
+            check_temperatures(&self.temperatures_k, self.degree)?;
         }
         if self.degree > nuc::MAX_DEGREE {
             return Err(Error::param(
@@ -122,36 +153,192 @@ impl CalibrationOptions {
                 "at least 1 frame per calibration level",
             ));
         }
-        let (lo, hi) = self.lut_range_k;
-        require_positive("lut_range_k.0", lo)?;
-        if !(hi.is_finite() && hi > lo) {
-            return Err(Error::param(
-                "lut_range_k.1",
-                hi,
-                format!("a finite temperature in K above lut_range_k.0 = {lo}"),
-            ));
+        for (name, (lo, hi)) in [
+            ("lut_range_k", self.lut_range_k),
+            ("radiance_range_k", self.radiance_range_k),
+        ] {
+            require_positive(&format!("{name}.0"), lo)?;
+            if !(hi.is_finite() && hi > lo) {
+                return Err(Error::param(
+                    format!("{name}.1"),
+                    hi,
+                    format!("a finite temperature in K above {name}.0 = {lo}"),
+                ));
+            }
         }
         Ok(())
     }
 }
 
+/// Checks explicit reference temperatures: finite, > 0, at least max(2, degree + 1)
+/// distinct.
+fn check_temperatures(temperatures_k: &[f64], degree: usize) -> Result<()> {
+    for (l, &t) in temperatures_k.iter().enumerate() {
+        require_positive(&format!("temperatures_k[{l}]"), t)?;
+    }
+    let mut sorted = temperatures_k.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    sorted.dedup();
+    if sorted.len() < 2 || sorted.len() < degree + 1 {
+        return Err(Error::param(
+            "temperatures_k",
+            format!("{} distinct temperature(s)", sorted.len()),
+            format!(
+                "at least max(2, degree + 1) = {} distinct blackbody temperatures",
+                (degree + 1).max(2)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Node spacing of the blackbody response tables ([`HermiteTable`], equal steps in 1/T) in
+/// units of the Wien exponent: `c Δu` with c = hc/(λ_min k) at the shortest wavelength of
+/// the response, so the relative interpolation error is ≤ (c Δu)⁴/384 = 1.6e-8 everywhere
+/// (about 360 nodes over 150–1000 K for a band from 4.5 µm).
+const RESPONSE_TABLE_WIEN_STEP: f64 = 0.05;
+
+/// Shortest wavelength (µm) used to size the table step (a response reaching below it is
+/// tabulated as if it started there; 0.5 µm gives 3300 nodes for 150–1000 K).
+const RESPONSE_TABLE_MIN_WAVELENGTH_UM: f64 = 0.5;
+
+/// Second radiation constant hc/k, m·K (exact with the 2019 SI constants).
+const C2_M_K: f64 = PLANCK_H * SPEED_OF_LIGHT_C / BOLTZMANN_K;
+
+/// `∂ ln L/∂T` of Planck's law at `wavelength_um`, `t_k` (the same for the energy and the
+/// photon form): `x / (T (1 − e^{−x}))`, x = hc/(λkT) — differentiate
+/// `L ∝ 1/(e^x − 1)` with `dx/dT = −x/T`.
+fn planck_log_derivative(wavelength_um: f64, t_k: f64) -> f64 {
+    let x = C2_M_K / (wavelength_um * 1e-6 * t_k);
+    x / (t_k * -(-x).exp_m1())
+}
+
 /// The sensor's blackbody response chain (everything needed to evaluate DN*(T), μ_e(T)
 /// and L_band(T)); cheap to clone into the lookup-table closures.
+///
+/// μ_e(T) and L_band(T) are band integrals (adaptive quadrature, ~1e-10 relative). They are
+/// tabulated once per calibration, with their exact temperature derivatives (the same
+/// integrals of `∂L/∂T = L · ∂ln L/∂T`), on the whole LUT range at steps of
+/// [`RESPONSE_TABLE_WIEN_STEP`] in the Wien exponent, and evaluated by cubic Hermite
+/// interpolation in 1/T ([`HermiteTable`]);
+/// outside the tables the integrals are evaluated directly.
 #[derive(Debug, Clone)]
 struct Chain {
     camera: CameraEquation,
     response: Spectrum,
     model: DetectorModel,
     peak_response: f64,
+    electrons_table: Option<Arc<HermiteTable>>,
+    radiance_table: Option<Arc<HermiteTable>>,
 }
 
 impl Chain {
-    /// Mean signal electrons of an on-axis pixel viewing a blackbody at `t_k`
-    /// (camera equation, docs/design.md §4.1); NaN if the band integral fails.
-    fn electrons(&self, t_k: f64) -> f64 {
+    /// The chain of `sensor` with `model`: the electrons table on `electrons_range_k`, the
+    /// in-band radiance table on `radiance_range_k`.
+    fn new(
+        sensor: &Sensor,
+        model: &DetectorModel,
+        electrons_range_k: (f64, f64),
+        radiance_range_k: (f64, f64),
+    ) -> Result<Self> {
+        let response = sensor.response().clone();
+        let peak_response = peak_of(&response);
+        if !(peak_response.is_finite() && peak_response > 0.0) {
+            return Err(Error::param(
+                "spectral response",
+                peak_response,
+                "a response with a positive peak inside a bounded band",
+            ));
+        }
+        let mut chain = Chain {
+            camera: *sensor.camera(),
+            response,
+            model: model.clone(),
+            peak_response,
+            electrons_table: None,
+            radiance_table: None,
+        };
+        let c = &chain;
+        let lambda_min_um = c
+            .response
+            .support_um()
+            .0
+            .max(RESPONSE_TABLE_MIN_WAVELENGTH_UM);
+        let step_inv_k = RESPONSE_TABLE_WIEN_STEP * lambda_min_um * 1e-6 / C2_M_K;
+        let electrons = HermiteTable::new(
+            |t| (c.electrons_exact(t), c.electrons_derivative_exact(t)),
+            electrons_range_k.0,
+            electrons_range_k.1,
+            step_inv_k,
+        )?;
+        let radiance = HermiteTable::new(
+            |t| {
+                (
+                    c.band_radiance_exact(t),
+                    c.band_radiance_derivative_exact(t),
+                )
+            },
+            radiance_range_k.0,
+            radiance_range_k.1,
+            step_inv_k,
+        )?;
+        chain.electrons_table = Some(Arc::new(electrons));
+        chain.radiance_table = Some(Arc::new(radiance));
+        Ok(chain)
+    }
+
+    /// μ_e(T) by the band integral (camera equation, docs/design.md §4.1); NaN if it fails.
+    fn electrons_exact(&self, t_k: f64) -> f64 {
         self.camera
             .electrons_blackbody(t_k, &self.response)
             .unwrap_or(f64::NAN)
+    }
+
+    /// dμ_e/dT: the camera equation with `∂L_λ/∂T` for the radiance.
+    fn electrons_derivative_exact(&self, t_k: f64) -> f64 {
+        let (lo, hi) = self.response.support_um();
+        self.camera
+            .electrons_spectral(
+                &self.response,
+                |w| planck_spectral_radiance(w, t_k) * planck_log_derivative(w, t_k),
+                lo,
+                hi,
+            )
+            .unwrap_or(f64::NAN)
+    }
+
+    /// L_band(T) by the band integral.
+    fn band_radiance_exact(&self, t_k: f64) -> f64 {
+        band_radiance(t_k, &self.response).unwrap_or(f64::NAN) / self.peak_response
+    }
+
+    /// dL_band/dT by the band integral of `S ∂L_λ/∂T / max S`.
+    fn band_radiance_derivative_exact(&self, t_k: f64) -> f64 {
+        let (lo, hi) = self.response.support_um();
+        let s = &self.response;
+        integrate(
+            |w| {
+                let r = s.eval(w);
+                if r == 0.0 {
+                    0.0
+                } else {
+                    r * planck_spectral_radiance(w, t_k) * planck_log_derivative(w, t_k)
+                }
+            },
+            lo,
+            hi,
+            &s.breakpoints_um(),
+            1e-10,
+        ) / self.peak_response
+    }
+
+    /// Mean signal electrons of an on-axis pixel viewing a blackbody at `t_k`
+    /// (camera equation, docs/design.md §4.1): the table inside its range, else the integral.
+    fn electrons(&self, t_k: f64) -> f64 {
+        self.electrons_table
+            .as_ref()
+            .and_then(|tab| tab.eval(t_k))
+            .unwrap_or_else(|| self.electrons_exact(t_k))
     }
 
     /// Ideal DN `model.expected_dn(μ_e(T))` of the mean detector model.
@@ -161,7 +348,10 @@ impl Chain {
 
     /// In-band radiance `∫ S L_λ dλ / max S`, W m-2 sr-1 (module documentation).
     fn band_radiance(&self, t_k: f64) -> f64 {
-        band_radiance(t_k, &self.response).unwrap_or(f64::NAN) / self.peak_response
+        self.radiance_table
+            .as_ref()
+            .and_then(|tab| tab.eval(t_k))
+            .unwrap_or_else(|| self.band_radiance_exact(t_k))
     }
 
     /// Whether DN* at `t_k` is finite, inside (0, max DN) and still rising.
@@ -183,6 +373,7 @@ pub struct Calibration {
     radiance_lut: TemperatureLut,
     cos4: Option<Array2<f64>>,
     frames_per_level: usize,
+    route: FrameRoute,
     temperatures_k: Vec<f64>,
 }
 
@@ -270,16 +461,155 @@ fn stack_frames(
     Ok(stack)
 }
 
+/// The reference temperatures: explicit, else the sensor file's `[calibration]`, else
+/// automatic from the sensor's range ([`levels::automatic`]); checked like explicit ones.
+fn reference_temperatures(
+    sensor: &Sensor,
+    chain: &Chain,
+    opts: &CalibrationOptions,
+) -> Result<Vec<f64>> {
+    if !opts.temperatures_k.is_empty() {
+        return Ok(opts.temperatures_k.clone());
+    }
+    if let Some(t) = sensor
+        .config()
+        .calibration
+        .as_ref()
+        .and_then(|c| c.temperatures_k.clone())
+    {
+        check_temperatures(&t, opts.degree).map_err(|e| {
+            Error::OutOfRange(format!(
+                "[calibration] temperatures_k of sensor `{}`: {e}",
+                sensor.config().name
+            ))
+        })?;
+        return Ok(t);
+    }
+    levels::automatic(chain, levels::SEARCH_RANGE_K, (opts.degree + 2).max(3))
+}
+
+/// The bad-pixel map: [`bad_pixels::detect`] on the coldest and hottest level averages,
+/// united with the pixels the NUC fit could not determine and those clipped at any level.
+fn bad_pixel_map(
+    chain: &Chain,
+    averages: &[(f64, f64, Array2<f64>)],
+    frames: usize,
+    nuc: &NucCoefficients,
+    clipped: Array2<bool>,
+) -> Result<BadPixelMap> {
+    let coldest = averages.iter().min_by(|a, b| a.0.total_cmp(&b.0));
+    let hottest = averages.iter().max_by(|a, b| a.0.total_cmp(&b.0));
+    let (Some(coldest), Some(hottest)) = (coldest, hottest) else {
+        return Err(Error::param(
+            "temperatures_k",
+            "none",
+            "at least two blackbody temperatures",
+        ));
+    };
+    // Floor on the robust σ: the temporal noise left in an M-frame average plus the
+    // quantisation step, so a nearly uniform array does not flag pixels one count off.
+    let model = &chain.model;
+    let noise = model.temporal_noise_dn(chain.electrons(coldest.0));
+    let min_sigma = ((noise * noise + model.quantisation_noise_dn().powi(2)) / frames as f64)
+        .sqrt()
+        .max(model.quantisation_noise_dn());
+    let criteria = BadPixelCriteria {
+        min_sigma,
+        ..BadPixelCriteria::default()
+    };
+    let detection = bad_pixels::detect(coldest.2.view(), hottest.2.view(), &criteria)?;
+    detection
+        .map
+        .union(&nuc.rank_deficient_map())?
+        .union(&BadPixelMap::from_mask(clipped))
+}
+
+/// The DN table on `lut_range_k` trimmed to where DN* rises, and the in-band radiance
+/// table on `radiance_range_k`.
+fn lookup_tables(
+    chain: &Chain,
+    opts: &CalibrationOptions,
+) -> Result<(TemperatureLut, TemperatureLut)> {
+    let (t_lo, t_hi) = opts.lut_range_k;
+    if !chain.rising(t_lo) {
+        return Err(Error::param(
+            "lut_range_k.0",
+            t_lo,
+            "a lower LUT temperature at which the ideal pixel is not clipped and its DN rises with temperature",
+        ));
+    }
+    let top = if chain.rising(t_hi) {
+        t_hi
+    } else {
+        // Bisection for the last rising temperature (to 1 mK), then step back.
+        let (mut a, mut b) = (t_lo, t_hi);
+        while b - a > 1e-3 {
+            let mid = 0.5 * (a + b);
+            if chain.rising(mid) {
+                a = mid;
+            } else {
+                b = mid;
+            }
+        }
+        a
+    };
+    if top <= t_lo {
+        return Err(Error::param(
+            "lut_range_k",
+            format!("({t_lo}, {t_hi})"),
+            "a range in which the ideal pixel is unclipped over more than one point",
+        ));
+    }
+    let c1 = chain.clone();
+    let dn_lut = TemperatureLut::new(move |t| c1.ideal_dn(t), t_lo, top)?;
+    let c2 = chain.clone();
+    let (r_lo, r_hi) = opts.radiance_range_k;
+    // L_band(T) does not depend on the ADC: the radiance table spans its own range, so an
+    // in-band radiance image (`eoir temperature` on f32 radiance) inverts above the
+    // temperature where the DN saturate.
+    let radiance_lut = TemperatureLut::new(move |t| c2.band_radiance(t), r_lo, r_hi)?;
+    Ok((dn_lut, radiance_lut))
+}
+
+/// The M-frame level averages of one instance, by either [`FrameRoute`].
+struct LevelAverager<'a> {
+    instance: &'a DetectorInstance,
+    maps: Option<flat_field::InstanceMaps>,
+    frames: usize,
+}
+
+impl<'a> LevelAverager<'a> {
+    fn new(instance: &'a DetectorInstance, route: FrameRoute, frames: usize) -> Self {
+        let maps =
+            (route == FrameRoute::Statistical).then(|| flat_field::InstanceMaps::of(instance));
+        LevelAverager {
+            instance,
+            maps,
+            frames,
+        }
+    }
+
+    /// The average of M frames of `mean_e` whose first frame index is `first`, and the
+    /// clipped-pixel mask.
+    fn average(&self, mean_e: &Array2<f64>, first: u64) -> Result<(Array2<f64>, Array2<bool>)> {
+        match &self.maps {
+            Some(maps) => flat_field::average(self.instance, maps, mean_e, self.frames, first),
+            None => average_frames(self.instance, mean_e, first, self.frames),
+        }
+    }
+}
+
 impl Calibration {
     /// Calibrates `instance` (drawn from `model`, the detector of `sensor`) against uniform
-    /// blackbodies at `opts.temperatures_k` (see the module documentation for the method,
-    /// the frame indices and the definition of the in-band radiance).
+    /// blackbodies at the reference temperatures (see the module documentation for the
+    /// method, the choice of temperatures, the frame routes and the definition of the
+    /// in-band radiance).
     ///
-    /// Errors: invalid options; an instance of another shape than the model; a
-    /// calibration level whose ideal DN is at or beyond the ADC limits or full well (the
-    /// fit would see clipped data; choose lower temperatures or a lower gain); a spectral
-    /// response without a bounded band; a LUT range whose lower end already saturates;
-    /// errors of the NUC fit or bad-pixel detection.
+    /// Errors: invalid options; an instance of another shape than the model; no usable
+    /// range for automatic levels; a calibration level whose ideal DN is at or beyond the
+    /// ADC limits or full well (the fit would see clipped data; choose lower temperatures
+    /// or a lower gain); a spectral response without a bounded band; a LUT range whose
+    /// lower end already saturates; errors of the NUC fit or bad-pixel detection.
     pub fn new(
         sensor: &Sensor,
         model: &DetectorModel,
@@ -296,28 +626,21 @@ impl Calibration {
                 format!("an instance of the model's {rows} x {cols} detector"),
             ));
         }
-        let response = sensor.response().clone();
-        let peak_response = peak_of(&response);
-        if !(peak_response.is_finite() && peak_response > 0.0) {
-            return Err(Error::param(
-                "spectral response",
-                peak_response,
-                "a response with a positive peak inside a bounded band",
-            ));
-        }
-        let chain = Chain {
-            camera: *sensor.camera(),
-            response,
-            model: model.clone(),
-            peak_response,
-        };
+        // The electrons table covers the DN table and the search for automatic levels.
+        let electrons_range_k = (
+            opts.lut_range_k.0.min(levels::SEARCH_RANGE_K.0),
+            opts.lut_range_k.1.max(levels::SEARCH_RANGE_K.1),
+        );
+        let chain = Chain::new(sensor, model, electrons_range_k, opts.radiance_range_k)?;
+        let temperatures_k = reference_temperatures(sensor, &chain, opts)?;
         let cos4 = sensor.optics.cos4.then(|| cos4_map(sensor, rows, cols));
 
         // Calibration levels: averaged frames and their ideal-DN references.
         let m = opts.frames_per_level;
-        let mut averages = Vec::with_capacity(opts.temperatures_k.len());
+        let averager = LevelAverager::new(instance, opts.route, m);
+        let mut averages = Vec::with_capacity(temperatures_k.len());
         let mut clipped = Array2::from_elem((rows, cols), false);
-        for (l, &t) in opts.temperatures_k.iter().enumerate() {
+        for (l, &t) in temperatures_k.iter().enumerate() {
             let e = chain.camera.electrons_blackbody(t, &chain.response)?;
             let total = e + model.dark_e() + model.background_e();
             let reference = model.expected_dn(e);
@@ -334,90 +657,15 @@ impl Calibration {
             }
             let mean_e = flat_field_e(&chain, cos4.as_ref(), t)?;
             let first = CALIBRATION_FRAME_BASE + (l * m) as u64;
-            let (avg, clip) = average_frames(instance, &mean_e, first, m)?;
+            let (avg, clip) = averager.average(&mean_e, first)?;
             Zip::from(&mut clipped).and(&clip).for_each(|a, &b| *a |= b);
             averages.push((t, reference, avg));
         }
         let levels: Vec<(f64, ArrayView2<f64>)> =
             averages.iter().map(|(_, r, a)| (*r, a.view())).collect();
         let nuc = NucCoefficients::fit(&levels, opts.degree)?;
-
-        // Bad pixels from the coldest and hottest levels.
-        let coldest = averages
-            .iter()
-            .min_by(|a, b| a.0.total_cmp(&b.0))
-            .map(|a| &a.2);
-        let hottest = averages
-            .iter()
-            .max_by(|a, b| a.0.total_cmp(&b.0))
-            .map(|a| &a.2);
-        let (Some(coldest), Some(hottest)) = (coldest, hottest) else {
-            return Err(Error::param(
-                "temperatures_k",
-                "none",
-                "at least two blackbody temperatures",
-            ));
-        };
-        // Floor on the robust σ: the temporal noise left in an M-frame average plus the
-        // quantisation step, so a nearly uniform array does not flag pixels one count off.
-        let t_cold = opts
-            .temperatures_k
-            .iter()
-            .copied()
-            .fold(f64::INFINITY, f64::min);
-        let noise = model.temporal_noise_dn(chain.electrons(t_cold));
-        let min_sigma = ((noise * noise + model.quantisation_noise_dn().powi(2)) / m as f64)
-            .sqrt()
-            .max(model.quantisation_noise_dn());
-        let criteria = BadPixelCriteria {
-            min_sigma,
-            ..BadPixelCriteria::default()
-        };
-        let detection = bad_pixels::detect(coldest.view(), hottest.view(), &criteria)?;
-        let bad = detection
-            .map
-            .union(&nuc.rank_deficient_map())?
-            .union(&BadPixelMap::from_mask(clipped))?;
-
-        // Lookup tables on the range where DN* rises.
-        let (t_lo, t_hi) = opts.lut_range_k;
-        if !chain.rising(t_lo) {
-            return Err(Error::param(
-                "lut_range_k.0",
-                t_lo,
-                "a lower LUT temperature at which the ideal pixel is not clipped and its DN rises with temperature",
-            ));
-        }
-        let top = if chain.rising(t_hi) {
-            t_hi
-        } else {
-            // Bisection for the last rising temperature (to 1 mK), then step back.
-            let (mut a, mut b) = (t_lo, t_hi);
-            while b - a > 1e-3 {
-                let mid = 0.5 * (a + b);
-                if chain.rising(mid) {
-                    a = mid;
-                } else {
-                    b = mid;
-                }
-            }
-            a
-        };
-        if top <= t_lo {
-            return Err(Error::param(
-                "lut_range_k",
-                format!("({t_lo}, {t_hi})"),
-                "a range in which the ideal pixel is unclipped over more than one point",
-            ));
-        }
-        let c1 = chain.clone();
-        let dn_lut = TemperatureLut::new(move |t| c1.ideal_dn(t), t_lo, top)?;
-        let c2 = chain.clone();
-        // L_band(T) does not depend on the ADC: the radiance table spans the whole range,
-        // so an in-band radiance image (`eoir temperature` on f32 radiance) inverts above
-        // the temperature where the DN saturate.
-        let radiance_lut = TemperatureLut::new(move |t| c2.band_radiance(t), t_lo, t_hi)?;
-
+        let bad = bad_pixel_map(&chain, &averages, m, &nuc, clipped)?;
+        let (dn_lut, radiance_lut) = lookup_tables(&chain, opts)?;
         Ok(Calibration {
             chain,
             nuc,
@@ -426,7 +674,8 @@ impl Calibration {
             radiance_lut,
             cos4,
             frames_per_level: m,
-            temperatures_k: opts.temperatures_k.clone(),
+            route: opts.route,
+            temperatures_k,
         })
     }
 
@@ -573,7 +822,8 @@ impl Calibration {
 
     /// Residual non-uniformity σ/mean of a flat field at `t_k` (a temperature not used in
     /// the fit), `(raw, corrected)`: the average of M (= `frames_per_level`) frames of
-    /// `instance` (frame indices from [`VALIDATION_FRAME_BASE`]), raw and through
+    /// `instance` (frame indices from [`VALIDATION_FRAME_BASE`]; by the calibration's
+    /// [`FrameRoute`]), raw and through
     /// [`Calibration::correct_f64`]. Both are taken over the pixels not flagged bad, so the
     /// figure measures the fixed-pattern correction, not defect replacement; the
     /// corrected value keeps the temporal noise of the average (σ_t/√M).
@@ -587,12 +837,8 @@ impl Calibration {
     ) -> Result<(f64, f64)> {
         require_positive("t_k", t_k)?;
         let mean_e = flat_field_e(&self.chain, self.cos4.as_ref(), t_k)?;
-        let (avg, _) = average_frames(
-            instance,
-            &mean_e,
-            VALIDATION_FRAME_BASE,
-            self.frames_per_level,
-        )?;
+        let averager = LevelAverager::new(instance, self.route, self.frames_per_level);
+        let (avg, _) = averager.average(&mean_e, VALIDATION_FRAME_BASE)?;
         let raw = nuc::residual_nonuniformity(avg.view(), Some(&self.bad))?;
         let corrected = self.correct_f64(avg.view())?;
         let cor = nuc::residual_nonuniformity(corrected.view(), Some(&self.bad))?;
@@ -612,6 +858,17 @@ impl Calibration {
         let c = &self.chain;
         netd::analytic_netd(|t| c.ideal_dn(t), t_ref_k, noise)
     }
+}
+
+/// The lookup table `T → L_band(T)` (in-band radiance, W m-2 sr-1, module documentation)
+/// of `sensor` on `range_k`, for inverting radiance images: no detector, NUC or ADC is
+/// involved, so it spans the whole range however the DN saturate.
+///
+/// Errors: a spectral response without a bounded band or positive peak, or an invalid
+/// range.
+pub fn band_radiance_lut(sensor: &Sensor, range_k: (f64, f64)) -> Result<TemperatureLut> {
+    let chain = Chain::new(sensor, sensor.detector(), range_k, range_k)?;
+    TemperatureLut::new(move |t| chain.band_radiance(t), range_k.0, range_k.1)
 }
 
 /// Measured NETD (K) of `instance` from simulated frames (docs/design.md §4.10 style
