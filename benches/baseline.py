@@ -9,6 +9,9 @@ its parameters, the spectral weights and the padded frame size come from the JSO
 written by `cargo run --release --example bench_run`.
 
 usage: baseline.py PARAMS.json CUBE.img   (prints wall seconds and peak RSS in MiB)
+       baseline.py rfft2 ROWS COLS REPEATS  (median seconds of one scipy.fft.rfft2 of a
+                                             ROWS x COLS frame, all workers, in float32
+                                             and float64)
 """
 import json
 import resource
@@ -61,7 +64,24 @@ def otf(p, fy, fx, lam_um):
     return t
 
 
+def time_rfft2(ny, nx, repeats):
+    out = {}
+    for name, dtype in (("f32", np.float32), ("f64", np.float64)):
+        x = (np.arange(ny * nx, dtype=np.int64).reshape(ny, nx) % 101).astype(dtype)
+        scipy.fft.rfft2(x, workers=-1)  # plan / warm up
+        ts = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            scipy.fft.rfft2(x, workers=-1)
+            ts.append(time.perf_counter() - t0)
+        out[name] = float(np.median(ts))
+    print(json.dumps(out))
+
+
 def main():
+    if sys.argv[1] == "rfft2":
+        time_rfft2(int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4]))
+        return
     p = json.load(open(sys.argv[1]))
     bands, rows, cols = p["bands"], p["rows"], p["cols"]
     cube = np.memmap(sys.argv[2], dtype="<f4", mode="r", shape=(bands, rows, cols))

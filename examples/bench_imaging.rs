@@ -1,65 +1,142 @@
-//! Prints timings of the imaging engine on synthetic cubes of several sizes.
+//! Scaling of the imaging engine with threads and precision, in memory (no file I/O).
 //!
-//! `cargo run --release --example bench_imaging` — figures go into BENCHMARKS.md.
+//! `cargo run --release --example bench_imaging -- [SIZE:BANDS ...]` (default `1024:32`).
+//! For each case, precision (f32, f64) and rayon pool size (1, 2, … up to the number of
+//! cores), prints the median wall time of `Imager::mean_electrons` over 3 runs, the CPU
+//! time of the process during those runs (getrusage), the speed-up over one thread and the
+//! parallel efficiency (speed-up / threads). On a shared machine the CPU time is the more
+//! stable figure; figures go into BENCHMARKS.md.
 
 use std::time::Instant;
 
 use ndarray::Array3;
 
+use eoir::imaging::fft::FftPrecision;
 use eoir::imaging::{Imager, DEFAULT_WRAP_TOLERANCE};
 use eoir::io::MemoryCube;
 use eoir::scene::{Cube, CubeMeta, Geometry, RadianceUnits};
-use eoir::sensor::presets;
+use eoir::sensor::{Sensor, SensorConfig};
 
-fn main() -> eoir::Result<()> {
-    let threads = rayon::current_num_threads();
-    println!("rayon threads: {threads}");
-    println!(
-        "{:>14} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
-        "scene", "bands", "padded", "setup_s", "fft_s", "otf_s", "inv_s", "total_s"
-    );
-    for (k, bands) in [(1usize, 30usize), (2, 30), (3, 30), (3, 60)] {
-        let sensor = eoir::sensor::Sensor::build(&presets::load("multimir", &[], &[])?)?;
-        let (rows, cols) = (sensor.detector.rows * k, sensor.detector.cols * k);
+const SENSOR: &str = r#"
+name = "bench-swir"
+[optics]
+focal_length_m = 0.1
+f_number = 2.0
+obscuration_ratio = 0.3
+[filter]
+kind = "top_hat"
+lo_um = 1.0
+hi_um = 1.7
+[detector]
+rows = DET
+cols = DET
+pitch_m = 15e-6
+active_width_m = 14e-6
+integration_time_s = 1e-3
+quantum_efficiency = { kind = "ideal_qe", peak = 0.8, cutoff_um = 1.7 }
+[aberration]
+rms_waves = 0.05
+[defocus]
+w020_waves = 0.3
+[motion]
+smear_rad = 60e-6
+direction_deg = 30
+[jitter]
+sigma_rad = 10e-6
+[turbulence]
+path = "horizontal"
+cn2 = 1e-15
+range_m = 2000
+[aerosol]
+absorption_per_m = 1e-5
+scattering_per_m = 2e-5
+range_m = 2000
+particle_radius_m = 1e-6
+[gaussian]
+sigma_rad = 5e-6
+"#;
+
+/// CPU seconds (user + system) of this process so far.
+fn cpu_s() -> f64 {
+    // SAFETY: getrusage writes into the zeroed struct we pass; no other effect.
+    let mut u: libc::rusage = unsafe { std::mem::zeroed() };
+    unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) };
+    let t = |v: libc::timeval| v.tv_sec as f64 + v.tv_usec as f64 * 1e-6;
+    t(u.ru_utime) + t(u.ru_stime)
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let cases: Vec<String> = std::env::args().skip(1).collect();
+    let cases = if cases.is_empty() {
+        vec!["1024:32".to_string()]
+    } else {
+        cases
+    };
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    println!("| scene × bands | precision | threads | wall (s, median of 3) | CPU (s per run) | speed-up vs 1 thread | efficiency |");
+    println!("|---|---|---|---|---|---|---|");
+    for c in cases {
+        let (n, bands) = c.split_once(':').ok_or("cases are SIZE:BANDS")?;
+        let (n, bands): (usize, usize) = (n.parse()?, bands.parse()?);
+        let toml = SENSOR.replace("DET", &(n / 3).to_string());
+        let cfg = SensorConfig::from_toml_str(&toml, "bench", ".".into(), &[])?;
+        let sensor = Sensor::build(&cfg)?;
         let wl: Vec<f64> = (0..bands)
-            .map(|i| 4.4 + 0.9 * i as f64 / (bands - 1) as f64)
+            .map(|i| 0.95 + 0.8 * i as f64 / (bands - 1) as f64)
             .collect();
-        let data = Array3::from_shape_fn((bands, rows, cols), |(b, r, c)| {
-            (1.0 + 0.5 * ((r * 7 + c * 13 + b) % 17) as f64 / 17.0) as f32
+        let data = Array3::from_shape_fn((bands, n, n), |(b, r, c)| {
+            let (r, c, b) = (r as f32, c as f32, b as f32);
+            10.0 + 3.0 * (0.071 * r + 0.013 * c + 0.1 * b).cos()
+                + ((r * 0.77 + c * 1.31).sin() * 43_758.547).fract()
         });
-        let ifov = sensor.ifov_rad() / k as f64;
         let meta = CubeMeta {
             wavelength_um: wl,
             fwhm_um: None,
             units: RadianceUnits::SpectralPerUm,
-            geometry: Some(Geometry::from_ifov(ifov, ifov, rows, cols)),
-            rows,
-            cols,
+            geometry: Some(Geometry::from_ifov(50e-6, 50e-6, n, n)),
+            rows: n,
+            cols: n,
         };
         let cube = Cube::new(data, meta.clone())?;
-        let t0 = Instant::now();
-        let imager = Imager::new(
-            &sensor,
-            &meta,
-            &meta.geometry.unwrap(),
-            DEFAULT_WRAP_TOLERANCE,
-        )?;
-        let setup = t0.elapsed().as_secs_f64();
-        let mut reader = MemoryCube::new(cube);
-        let t1 = Instant::now();
-        let (_, stats) = imager.mean_electrons(&mut reader, 0, |_, _| {})?;
-        let total = t1.elapsed().as_secs_f64();
-        println!(
-            "{:>14} {:>6} {:>9} {:>9.3} {:>9.3} {:>9.3} {:>9.3} {:>9.3}",
-            format!("{cols}x{rows}"),
-            bands,
-            format!("{}x{}", stats.padded_shape.1, stats.padded_shape.0),
-            setup,
-            stats.fft_s,
-            stats.otf_s,
-            stats.inverse_s,
-            total
-        );
+        for precision in [FftPrecision::F32, FftPrecision::F64] {
+            let mut one = f64::NAN;
+            let mut threads = 1;
+            while threads <= cores {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()?;
+                let (mut walls, c0) = (Vec::new(), cpu_s());
+                for _ in 0..3 {
+                    let r: eoir::Result<f64> = pool.install(|| {
+                        let im = Imager::new(
+                            &sensor,
+                            &meta,
+                            &meta.geometry.unwrap(),
+                            DEFAULT_WRAP_TOLERANCE,
+                        )?
+                        .with_precision(precision);
+                        let mut reader = MemoryCube::new(cube.clone());
+                        let t = Instant::now();
+                        im.mean_electrons(&mut reader, 0, |_, _| {})?;
+                        Ok(t.elapsed().as_secs_f64())
+                    });
+                    walls.push(r?);
+                }
+                let cpu = (cpu_s() - c0) / 3.0;
+                walls.sort_by(|a, b| a.total_cmp(b));
+                let wall = walls[1];
+                if threads == 1 {
+                    one = wall;
+                }
+                println!(
+                    "| {n}² × {bands} | {} | {threads} | {wall:.3} | {cpu:.3} | {:.2} | {:.2} |",
+                    precision.as_str(),
+                    one / wall,
+                    one / wall / threads as f64
+                );
+                threads *= 2;
+            }
+        }
     }
     Ok(())
 }

@@ -1,20 +1,27 @@
-//! End-to-end benchmark: writes SWIR texture cubes to ENVI, times `eoir run` on them (wall,
-//! Mvoxel/s, peak RSS from `/usr/bin/time -v`), the FFT bound (B forward + 1 inverse real
-//! 2-D FFTs of the padded frame with the engine's own transform code) and the NumPy/SciPy
-//! script `benches/baseline.py` on the same files, and prints BENCHMARKS.md table rows.
+//! End-to-end benchmark (issue 9): writes SWIR texture cubes to ENVI, times `eoir run` on
+//! them as a child process (wall, Mvoxel/s, peak RSS from `/usr/bin/time -v`, the engine's
+//! time (`timings_s.total`) from the run's report.json), the FFT bound (B forward + 1 inverse real
+//! 2-D FFTs of the padded frame with the engine's own `RealFft2`, in the run's precision)
+//! and the NumPy/SciPy script `benches/baseline.py` on the same files, back to back, and
+//! prints BENCHMARKS.md tables: one row per case (medians over the repeats) and the
+//! per-transform comparison with `scipy.fft.rfft2` at the same size and precision.
 //!
 //! `cargo build --release && cargo run --release --example bench_run -- [SIZE:BANDS ...]`
 //! (default `1024:128`). Environment: `EOIR_BENCH_DIR` (default /tmp/eoir-bench),
-//! `EOIR_BENCH_PYTHON` (a Python with numpy and scipy; default `python3`; empty: skip).
+//! `EOIR_BENCH_PYTHON` (a Python with numpy and scipy; default `python3`; empty: skip the
+//! baseline), `EOIR_BENCH_REPEAT` (runs per case, default 3), `EOIR_BENCH_PRECISION`
+//! (`f32` default, or `f64`), `EOIR_BENCH_INTERLEAVE` (`bsq` default, `bil`, `bip`: the
+//! layout of the ENVI file), `EOIR_BENCH_BASELINE_MAX_VOXELS` (skip the baseline above
+//! this many voxels; default 2^28).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
 use ndarray::{Array2, Array3};
-use num_complex::Complex64;
+use num_complex::Complex;
 
-use eoir::imaging::fft::RealFft2;
+use eoir::imaging::fft::{FftFloat, RealFft2};
 use eoir::imaging::{Imager, DEFAULT_WRAP_TOLERANCE};
 use eoir::scene::{Cube, CubeMeta, Geometry, RadianceUnits};
 use eoir::sensor::{Sensor, SensorConfig};
@@ -66,14 +73,91 @@ sigma_rad = 5e-6
     )
 }
 
+fn median(mut v: Vec<f64>) -> f64 {
+    v.retain(|x| x.is_finite());
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Median seconds of one forward transform and of `bands` forward + 1 inverse (the FFT
+/// bound) with the engine's transform code in `T`, on a `ny × nx` frame.
+fn fft_bound<T: FftFloat>(ny: usize, nx: usize, bands: usize, repeats: usize) -> (f64, f64) {
+    let fft = RealFft2::<T>::new(ny, nx);
+    let inv = RealFft2::<f64>::new(ny, nx);
+    let mut frame = Array2::from_shape_fn((ny, nx), |(r, c)| {
+        T::nearest_from_f64(((r * 31 + c * 17) % 101) as f64)
+    });
+    let mut spec = Array2::<Complex<T>>::zeros(fft.spectrum_shape());
+    let mut spec64 = Array2::<Complex<f64>>::zeros(fft.spectrum_shape());
+    let mut scratch = Vec::new();
+    let mut scratch64 = Vec::new();
+    let mut out = Array2::<f64>::zeros((ny, nx));
+    fft.forward(&mut frame, &mut spec, &mut scratch); // warm up
+    let mut one = Vec::new();
+    for _ in 0..9 {
+        let t = Instant::now();
+        fft.forward(&mut frame, &mut spec, &mut scratch);
+        one.push(t.elapsed().as_secs_f64());
+    }
+    let mut bound = Vec::new();
+    for _ in 0..repeats {
+        let t = Instant::now();
+        for _ in 0..bands {
+            fft.forward(&mut frame, &mut spec, &mut scratch);
+        }
+        inv.inverse(&mut spec64, &mut out, &mut scratch64);
+        bound.push(t.elapsed().as_secs_f64());
+    }
+    (median(one), median(bound))
+}
+
+/// Rewrites a BSQ ENVI cube as BIL or BIP (data and the header's `interleave`).
+fn reinterleave(hdr: &Path, data: &Array3<f32>, interleave: &str) -> std::io::Result<()> {
+    let (b, r, c) = data.dim();
+    let order: Vec<f32> = match interleave {
+        "bil" => (0..r)
+            .flat_map(|y| (0..b).flat_map(move |z| (0..c).map(move |x| (z, y, x))))
+            .map(|i| data[i])
+            .collect(),
+        _ => (0..r)
+            .flat_map(|y| (0..c).flat_map(move |x| (0..b).map(move |z| (z, y, x))))
+            .map(|i| data[i])
+            .collect(),
+    };
+    let bytes: Vec<u8> = order.iter().flat_map(|v| v.to_le_bytes()).collect();
+    std::fs::write(hdr.with_extension("img"), bytes)?;
+    let h = std::fs::read_to_string(hdr)?;
+    std::fs::write(
+        hdr,
+        h.replace("interleave = bsq", &format!("interleave = {interleave}")),
+    )
+}
+
+struct Settings {
+    dir: PathBuf,
+    python: String,
+    repeat: usize,
+    precision: String,
+    interleave: String,
+    baseline_max_voxels: usize,
+}
+
+/// One case: (table row, per-transform row).
 fn run(
     n: usize,
     bands: usize,
-    dir: &Path,
-    python: &str,
-) -> Result<String, Box<dyn std::error::Error>> {
+    set: &Settings,
+) -> Result<(String, String), Box<dyn std::error::Error>> {
     let det = n / K;
-    let case = dir.join(format!("{n}x{bands}"));
+    let case = set.dir.join(format!("{n}x{bands}-{}", set.interleave));
     std::fs::create_dir_all(&case)?;
     let sensor_path = case.join("sensor.toml");
     std::fs::write(&sensor_path, sensor_toml(det))?;
@@ -97,7 +181,11 @@ fn run(
                 + 2.0 * (0.31 * c - 0.05 * r).cos() * (0.02 * b).sin()
                 + ((r * 0.77 + c * 1.31).sin() * 43_758.547).fract()
         });
-        eoir::io::envi::write(&hdr, &Cube::new(data, meta.clone())?)?;
+        let cube = Cube::new(data, meta.clone())?;
+        eoir::io::envi::write(&hdr, &cube)?;
+        if set.interleave != "bsq" {
+            reinterleave(&hdr, &cube.data, &set.interleave)?;
+        }
     }
     // The engine's padded frame and spectral weights.
     let config = SensorConfig::from_toml_str(&sensor_toml(det), "bench", PathBuf::from("."), &[])?;
@@ -110,109 +198,173 @@ fn run(
     )?;
     let s = imager.sampling();
     let (ny, nx) = (s.y.padded_len, s.x.padded_len);
-    // FFT bound, same transform code, B forward + 1 inverse.
-    let fft = RealFft2::new(ny, nx);
-    let frame = Array2::from_shape_fn((ny, nx), |(r, c)| ((r * 31 + c * 17) % 101) as f64);
-    let mut spec = Array2::<Complex64>::zeros(fft.spectrum_shape());
-    let mut scratch = Vec::new();
-    let mut out = Array2::<f64>::zeros((ny, nx));
     let active = imager.weights().active_bands().len();
-    let t = Instant::now();
-    for _ in 0..active {
-        fft.forward_rows(
-            |r, row| row.copy_from_slice(frame.row(r).as_slice().unwrap()),
-            &mut spec,
-            &mut scratch,
-        );
-    }
-    fft.inverse(&mut spec, &mut out, &mut scratch);
-    let fft_bound = t.elapsed().as_secs_f64();
-    // eoir run end to end, as a child under /usr/bin/time -v.
     let exe = std::env::current_exe()?;
     let eoir = exe
         .parent()
         .and_then(|p| p.parent())
         .map(|p| p.join("eoir"))
         .ok_or("no eoir binary")?;
-    let outdir = case.join("out");
-    let _ = std::fs::remove_dir_all(&outdir);
-    let t = Instant::now();
-    let o = Command::new("/usr/bin/time")
-        .arg("-v")
-        .arg(&eoir)
-        .args(["run", "--quiet", "--sensor"])
-        .arg(&sensor_path)
-        .arg(&hdr)
-        .arg("-o")
-        .arg(&outdir)
-        .output()?;
-    let wall = t.elapsed().as_secs_f64();
-    let err = String::from_utf8_lossy(&o.stderr);
-    if !o.status.success() {
-        return Err(format!("eoir run failed: {err}").into());
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/baseline.py");
+    let params = serde_json::json!({
+        "bands": bands, "rows": n, "cols": n,
+        "padded_rows": ny, "padded_cols": nx,
+        "pad_rows": s.y.pad_before, "pad_cols": s.x.pad_before,
+        "scene_ifov_rad": SCENE_IFOV_RAD, "k": K,
+        "weights": imager.weights().electrons_per_unit,
+        "wavelength_um": wl,
+        "aperture_m": 0.05, "obscuration": 0.3, "w_rms_waves": 0.05, "w020_waves": 0.3,
+        "active_m": 14e-6, "focal_m": 0.1, "smear_rad": 60e-6, "smear_direction_deg": 30.0,
+        "jitter_rad": 10e-6, "gaussian_rad": 5e-6, "cn2": 1e-15, "turb_range_m": 2000.0,
+        "particle_m": 1e-6, "absorb_per_m": 1e-5, "scatter_per_m": 2e-5, "aer_range_m": 2000.0,
+    });
+    let pj = case.join("params.json");
+    std::fs::write(&pj, params.to_string())?;
+    let run_baseline = !set.python.is_empty()
+        && set.interleave == "bsq"
+        && n * n * bands <= set.baseline_max_voxels;
+    let (mut walls, mut rsss, mut engines, mut bounds) = (vec![], vec![], vec![], vec![]);
+    let (mut base_walls, mut base_rsss) = (vec![], vec![]);
+    let mut one_fft = f64::NAN;
+    for _ in 0..set.repeat {
+        // eoir run end to end, as a child under /usr/bin/time -v.
+        let outdir = case.join("out");
+        let _ = std::fs::remove_dir_all(&outdir);
+        let t = Instant::now();
+        let o = Command::new("/usr/bin/time")
+            .arg("-v")
+            .arg(&eoir)
+            .args([
+                "run",
+                "--quiet",
+                "--fft-precision",
+                &set.precision,
+                "--sensor",
+            ])
+            .arg(&sensor_path)
+            .arg(&hdr)
+            .arg("-o")
+            .arg(&outdir)
+            .output()?;
+        walls.push(t.elapsed().as_secs_f64());
+        let err = String::from_utf8_lossy(&o.stderr);
+        if !o.status.success() {
+            return Err(format!("eoir run failed: {err}").into());
+        }
+        rsss.push(
+            err.lines()
+                .find_map(|l| {
+                    l.trim()
+                        .strip_prefix("Maximum resident set size (kbytes): ")
+                })
+                .and_then(|v| v.trim().parse::<f64>().ok())
+                .map_or(f64::NAN, |kb| kb / 1024.0),
+        );
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(outdir.join("report.json"))?)?;
+        let t = &report["timings_s"];
+        let part = |k: &str| t[k].as_f64().unwrap_or(f64::NAN);
+        // Engine time: the report's total (reading, imaging, detector; the products are
+        // written after it).
+        engines.push(part("total"));
+        // FFT bound, same transform code and precision, B forward + 1 inverse.
+        let (one, bound) = if set.precision == "f64" {
+            fft_bound::<f64>(ny, nx, active, 1)
+        } else {
+            fft_bound::<f32>(ny, nx, active, 1)
+        };
+        one_fft = one;
+        bounds.push(bound);
+        // Baseline on the same file, right after.
+        if run_baseline {
+            let o = Command::new(&set.python)
+                .arg(&script)
+                .arg(&pj)
+                .arg(case.join("cube.img"))
+                .output()?;
+            if o.status.success() {
+                let v: serde_json::Value = serde_json::from_slice(&o.stdout)?;
+                base_walls.push(v["wall_s"].as_f64().unwrap_or(f64::NAN));
+                base_rsss.push(v["peak_rss_mib"].as_f64().unwrap_or(f64::NAN));
+            } else {
+                eprintln!("baseline failed: {}", String::from_utf8_lossy(&o.stderr));
+            }
+        }
     }
-    let rss_mib = err
-        .lines()
-        .find_map(|l| {
-            l.trim()
-                .strip_prefix("Maximum resident set size (kbytes): ")
-        })
-        .and_then(|v| v.trim().parse::<f64>().ok())
-        .map_or(f64::NAN, |kb| kb / 1024.0);
-    let voxels = (n * n * bands) as f64;
-    // Baseline on the same file.
-    let (mut base_wall, mut base_rss) = (f64::NAN, f64::NAN);
-    if !python.is_empty() {
-        let params = serde_json::json!({
-            "bands": bands, "rows": n, "cols": n,
-            "padded_rows": ny, "padded_cols": nx,
-            "pad_rows": s.y.pad_before, "pad_cols": s.x.pad_before,
-            "scene_ifov_rad": SCENE_IFOV_RAD, "k": K,
-            "weights": imager.weights().electrons_per_unit,
-            "wavelength_um": wl,
-            "aperture_m": 0.05, "obscuration": 0.3, "w_rms_waves": 0.05, "w020_waves": 0.3,
-            "active_m": 14e-6, "focal_m": 0.1, "smear_rad": 60e-6, "smear_direction_deg": 30.0,
-            "jitter_rad": 10e-6, "gaussian_rad": 5e-6, "cn2": 1e-15, "turb_range_m": 2000.0,
-            "particle_m": 1e-6, "absorb_per_m": 1e-5, "scatter_per_m": 2e-5, "aer_range_m": 2000.0,
-        });
-        let pj = case.join("params.json");
-        std::fs::write(&pj, params.to_string())?;
-        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/baseline.py");
-        let o = Command::new(python)
-            .arg(script)
-            .arg(&pj)
-            .arg(case.join("cube.img"))
+    // One transform against scipy.fft.rfft2 at the same size, both precisions.
+    let (ours32, _) = fft_bound::<f32>(ny, nx, 1, 1);
+    let (ours64, _) = fft_bound::<f64>(ny, nx, 1, 1);
+    let (mut sp32, mut sp64) = (f64::NAN, f64::NAN);
+    if !set.python.is_empty() {
+        let o = Command::new(&set.python)
+            .arg(&script)
+            .args(["rfft2", &ny.to_string(), &nx.to_string(), "15"])
             .output()?;
         if o.status.success() {
             let v: serde_json::Value = serde_json::from_slice(&o.stdout)?;
-            base_wall = v["wall_s"].as_f64().unwrap_or(f64::NAN);
-            base_rss = v["peak_rss_mib"].as_f64().unwrap_or(f64::NAN);
-        } else {
-            eprintln!("baseline failed: {}", String::from_utf8_lossy(&o.stderr));
+            sp32 = v["f32"].as_f64().unwrap_or(f64::NAN);
+            sp64 = v["f64"].as_f64().unwrap_or(f64::NAN);
         }
     }
-    Ok(format!(
-        "| {n}² × {bands} | {nx} × {ny} | {wall:.2} | {:.1} | {rss_mib:.0} | {fft_bound:.2} | {:.2} | {base_wall:.2} | {base_rss:.0} | {:.1}× |",
+    let _ = one_fft;
+    let (wall, rss, engine, bound) = (median(walls), median(rsss), median(engines), median(bounds));
+    let (bw, br) = (median(base_walls), median(base_rsss));
+    let voxels = (n * n * bands) as f64;
+    let row = format!(
+        "| {n}² × {bands} ({}) | {nx} × {ny} | {active} | {wall:.2} | {:.1} | {rss:.0} | {engine:.2} | {bound:.2} | {:.2} | {bw:.2} | {br:.0} | {:.1}× |",
+        set.interleave,
         voxels / wall / 1e6,
-        wall / fft_bound,
-        base_wall / wall
-    ))
+        engine / bound,
+        bw / wall
+    );
+    let fft_row = format!(
+        "| {nx} × {ny} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+        ours32 * 1e3,
+        sp32 * 1e3,
+        sp32 / ours32,
+        ours64 * 1e3,
+        sp64 * 1e3,
+        sp64 / ours64
+    );
+    Ok((row, fft_row))
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let dir = PathBuf::from(std::env::var("EOIR_BENCH_DIR").unwrap_or("/tmp/eoir-bench".into()));
-    let python = std::env::var("EOIR_BENCH_PYTHON").unwrap_or("python3".into());
+    let env = |k: &str, d: &str| std::env::var(k).unwrap_or(d.into());
+    let set = Settings {
+        dir: PathBuf::from(env("EOIR_BENCH_DIR", "/tmp/eoir-bench")),
+        python: env("EOIR_BENCH_PYTHON", "python3"),
+        repeat: env("EOIR_BENCH_REPEAT", "3").parse()?,
+        precision: env("EOIR_BENCH_PRECISION", "f32"),
+        interleave: env("EOIR_BENCH_INTERLEAVE", "bsq"),
+        baseline_max_voxels: env("EOIR_BENCH_BASELINE_MAX_VOXELS", "268435456").parse()?,
+    };
     let cases: Vec<String> = std::env::args().skip(1).collect();
     let cases = if cases.is_empty() {
         vec!["1024:128".to_string()]
     } else {
         cases
     };
-    println!("| scene × bands | padded frame | eoir wall (s) | Mvoxel/s | eoir peak RSS (MiB) | FFT bound (s) | engine/FFT bound | SciPy wall (s) | SciPy peak RSS (MiB) | speed-up |");
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    println!(
+        "rayon threads {}, precision {}, {} repeats (medians)",
+        rayon::current_num_threads(),
+        set.precision,
+        set.repeat
+    );
+    println!("| scene × bands (layout) | padded frame | bands used | eoir wall (s) | Mvoxel/s | eoir peak RSS (MiB) | engine total (s) | FFT bound (s) | engine/FFT bound | SciPy wall (s) | SciPy peak RSS (MiB) | speed-up |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let mut fft_rows = Vec::new();
     for c in cases {
         let (n, b) = c.split_once(':').ok_or("cases are SIZE:BANDS")?;
-        println!("{}", run(n.parse()?, b.parse()?, &dir, &python)?);
+        let (row, fft_row) = run(n.parse()?, b.parse()?, &set)?;
+        println!("{row}");
+        fft_rows.push(fft_row);
+    }
+    println!();
+    println!("| frame | eoir f32 (ms) | rfft2 f32 (ms) | SciPy/eoir | eoir f64 (ms) | rfft2 f64 (ms) | SciPy/eoir |");
+    println!("|---|---|---|---|---|---|---|");
+    for r in fft_rows {
+        println!("{r}");
     }
     Ok(())
 }

@@ -115,6 +115,8 @@ pub struct SamplingReport {
     pub padded_shape: [usize; 2],
     /// Wrap-around tolerance that set the padding.
     pub wrap_tolerance: f64,
+    /// Precision of the forward FFTs (`"f32"`: f32 transforms, f64 accumulation; `"f64"`).
+    pub fft_precision: &'static str,
 }
 
 /// `detector` of the report.
@@ -337,6 +339,7 @@ impl RunReport {
                 pad_px: [s.x.pad_before, s.y.pad_before],
                 padded_shape: [f.imaging.padded_shape.1, f.imaging.padded_shape.0],
                 wrap_tolerance: f.wrap_tolerance,
+                fft_precision: f.imaging.precision.as_str(),
             },
             detector: DetectorReport {
                 rows: d.rows,

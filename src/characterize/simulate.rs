@@ -39,7 +39,6 @@ use super::descriptor::{Descriptor, Series};
 use crate::detector::{DetectorInstance, DetectorModel};
 use crate::error::{Error, Result};
 use crate::io::{atomic_write, raster, write_all};
-use crate::sensor::presets;
 use crate::sensor::{Sensor, SensorConfig};
 
 /// Evenly spaced photon-transfer levels from dark to 90 % of saturation.
@@ -174,7 +173,12 @@ fn window_config(
 /// and not empty, or an I/O failure.
 pub fn simulate(sensor: &SensorConfig, dir: &Path, options: &SimulateOptions) -> Result<Truth> {
     let config = match &sensor.cfa {
-        Some(_) => presets::cfa_channel(sensor, crate::cfa::GREEN)?,
+        // The green plane of a colour filter array, as the build step resolved it.
+        Some(_) => Sensor::build(sensor)?
+            .cfa_channels()
+            .get(crate::cfa::GREEN)
+            .map(|c| c.config().clone())
+            .ok_or_else(|| Error::param("cfa", "no green channel", "a [cfa] section"))?,
         None => sensor.clone(),
     };
     if options.window < 16 {

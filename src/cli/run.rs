@@ -59,6 +59,10 @@ pub struct RunArgs {
     /// Frames to expose of a static scene (fixed pattern identical, temporal noise fresh).
     #[arg(long, default_value_t = 1)]
     frames: usize,
+    /// Precision of the per-band forward FFTs: f32 (accumulated in f64; the default,
+    /// faster) or f64 (the reference path).
+    #[arg(long, default_value = "f32", value_name = "f32|f64")]
+    fft_precision: String,
     /// Degree of the per-pixel NUC polynomial for thermal sensors (1 = two-point).
     #[arg(long, default_value_t = 1)]
     nuc_degree: usize,
@@ -359,6 +363,10 @@ pub fn run(args: RunArgs) -> Result<()> {
         geometry,
         frames: args.frames,
         calibration: Some(calibration_options(args.nuc_degree)?),
+        fft_precision: args
+            .fft_precision
+            .parse()
+            .with_context(|| format!("--fft-precision {}", args.fft_precision))?,
         ..Default::default()
     };
     if !args.composite {

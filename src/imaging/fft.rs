@@ -1,42 +1,141 @@
-//! Two-dimensional real FFT with plans and scratch reused across bands and frames.
+//! Two-dimensional real FFT in f32 or f64, with plans reused across bands and frames and
+//! scratch per worker.
 //!
-//! Real row transforms (`realfft`), a cache-oblivious transpose (`transpose`), complex
-//! column transforms (`rustfft`), rows and columns processed in parallel with rayon. The
-//! spectrum layout is `[row frequency, column frequency]` = `[rows, cols/2 + 1]`, the
-//! half-plane of [`crate::sensor::FrequencyGrid::real_fft`].
+//! A real 2-D transform of a `rows × cols` frame is done in two passes:
+//!
+//! 1. **Row pass** ([`RealFft2::rows_forward`]): real-to-complex transforms of the rows
+//!    (`realfft`), rows in parallel, each worker with its own row buffer and scratch. The
+//!    caller's `fill` writes each row just before it is transformed, so padding and the
+//!    f32 → T conversion are fused into this pass (no frame-sized real buffer).
+//! 2. **Column pass in blocks** ([`RealFft2::column_block`]): [`BLOCK_COLS`] columns of the
+//!    row spectra are gathered into a small contiguous per-worker buffer (`[column][row]`,
+//!    138 KiB for 1080 rows in f32: it stays in the core's L2 cache), transformed there
+//!    (`rustfft`, complex, length `rows`) and handed to the caller while still in cache.
+//!    No frame-sized transpose runs: the imaging engine multiplies each block by the OTF
+//!    and adds it to its accumulator straight away; [`RealFft2::forward`] writes the block
+//!    to a transposed buffer and transposes once for callers that want the standard
+//!    layout.
+//!
+//! Each sample of the result is computed by one worker with the same instructions whatever
+//! the number of threads or the block a column falls in, so results do not depend on the
+//! thread count (bit for bit). The spectrum layout of [`RealFft2::forward`] is
+//! `[row frequency, column frequency]` = `[rows, cols/2 + 1]`, the half-plane of
+//! [`crate::sensor::FrequencyGrid::real_fft`]; the engine's accumulator is its transpose
+//! `[cols/2 + 1, rows]`.
+//!
+//! **Precision.** `T = f32` transforms run about twice as fast as f64 (twice the SIMD lanes,
+//! half the memory traffic). Their rounding error is ~ε_f32·log2(n) relative to the
+//! spectrum's energy; accumulated in f64 across bands (see [`FftPrecision`]) the error of a
+//! mean electron image is measured in tests/all/perf_determinism.rs (≤ 1e-6 of the mean).
 
+use std::str::FromStr;
 use std::sync::Arc;
 
 use ndarray::Array2;
-use num_complex::Complex64;
+use num_complex::Complex;
 use rayon::prelude::*;
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
-use rustfft::{Fft, FftPlanner};
+use rustfft::{Fft, FftNum, FftPlanner};
 
-/// Forward and inverse plans for one frame size.
-pub struct RealFft2 {
-    rows: usize,
-    cols: usize,
-    r2c: Arc<dyn RealToComplex<f64>>,
-    c2r: Arc<dyn ComplexToReal<f64>>,
-    col_forward: Arc<dyn Fft<f64>>,
-    col_inverse: Arc<dyn Fft<f64>>,
+/// Floating-point type of a transform (f32 or f64), with lossless widening to f64.
+pub trait FftFloat: FftNum + Copy {
+    /// Nearest value of this type (rounding for f32).
+    fn nearest_from_f64(x: f64) -> Self;
+    /// Exact widening to f64.
+    fn widen(self) -> f64;
 }
 
-impl std::fmt::Debug for RealFft2 {
+impl FftFloat for f32 {
+    #[inline]
+    fn nearest_from_f64(x: f64) -> Self {
+        x as f32
+    }
+    #[inline]
+    fn widen(self) -> f64 {
+        self as f64
+    }
+}
+
+impl FftFloat for f64 {
+    #[inline]
+    fn nearest_from_f64(x: f64) -> Self {
+        x
+    }
+    #[inline]
+    fn widen(self) -> f64 {
+        self
+    }
+}
+
+/// Precision of the per-band forward transforms of the imaging engine. The accumulation
+/// over bands, the OTF, the inverse transform and the sampling are f64 in both cases.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FftPrecision {
+    /// f32 forward transforms, f64 accumulation (the default: about 1.5–2× faster; error
+    /// against the f64 path ≤ 1e-6 of the mean signal, tests/all/perf_determinism.rs).
+    #[default]
+    F32,
+    /// f64 throughout (the reference path).
+    F64,
+}
+
+impl FftPrecision {
+    /// `"f32"` or `"f64"`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            FftPrecision::F32 => "f32",
+            FftPrecision::F64 => "f64",
+        }
+    }
+}
+
+impl FromStr for FftPrecision {
+    type Err = crate::error::Error;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "f32" => Ok(FftPrecision::F32),
+            "f64" => Ok(FftPrecision::F64),
+            other => Err(crate::error::Error::param(
+                "FFT precision",
+                other,
+                "\"f32\" (f32 transforms, f64 accumulation) or \"f64\"",
+            )),
+        }
+    }
+}
+
+/// Columns per block of the column pass: 16 complex f32 columns of 1080 rows are 138 KiB,
+/// inside a core's L2 cache together with the accumulator block they are added to.
+pub const BLOCK_COLS: usize = 16;
+
+/// Forward and inverse plans for one frame size and precision.
+pub struct RealFft2<T: FftFloat = f64> {
+    rows: usize,
+    cols: usize,
+    r2c: Arc<dyn RealToComplex<T>>,
+    c2r: Arc<dyn ComplexToReal<T>>,
+    col_forward: Arc<dyn Fft<T>>,
+    col_inverse: Arc<dyn Fft<T>>,
+}
+
+impl<T: FftFloat> std::fmt::Debug for RealFft2<T> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "RealFft2({} x {})", self.rows, self.cols)
     }
 }
 
-/// How many column transforms each parallel task handles.
-const COLS_PER_TASK: usize = 16;
+/// Per-worker buffers of the column pass (see [`RealFft2::column_scratch`]).
+#[derive(Debug)]
+pub struct ColumnScratch<T> {
+    block: Vec<Complex<T>>,
+    fft: Vec<Complex<T>>,
+}
 
-impl RealFft2 {
+impl<T: FftFloat> RealFft2<T> {
     /// Plans transforms of a `rows × cols` real frame (both ≥ 1).
     pub fn new(rows: usize, cols: usize) -> Self {
-        let mut rp = RealFftPlanner::<f64>::new();
-        let mut cp = FftPlanner::<f64>::new();
+        let mut rp = RealFftPlanner::<T>::new();
+        let mut cp = FftPlanner::<T>::new();
         RealFft2 {
             rows,
             cols,
@@ -57,65 +156,122 @@ impl RealFft2 {
         (self.rows, self.cols / 2 + 1)
     }
 
-    /// Forward transform of `input` (`[rows, cols]`, standard layout; used as scratch and
-    /// left unspecified) into `out` (`[rows, cols/2+1]`), unnormalised:
-    /// `X[v,u] = Σ x[y,x] exp(−2πi (vy/rows + ux/cols))`. `scratch` is resized as needed
-    /// and can be reused across calls (no allocation per band).
-    pub fn forward(
-        &self,
-        input: &mut Array2<f64>,
-        out: &mut Array2<Complex64>,
-        scratch: &mut Vec<Complex64>,
-    ) {
-        let (rows, cols) = (self.rows, self.cols);
-        let hc = cols / 2 + 1;
-        assert_eq!(input.dim(), (rows, cols), "RealFft2::forward input shape");
-        assert_eq!(out.dim(), (rows, hc), "RealFft2::forward output shape");
-        let inp = input.as_slice_mut().expect("standard layout");
-        let o = out.as_slice_mut().expect("standard layout");
-        // Real transforms of the rows, straight into the output buffer.
-        o.par_chunks_mut(hc)
-            .zip(inp.par_chunks_mut(cols))
-            .for_each_init(
-                || self.r2c.make_scratch_vec(),
-                |sc, (o, i)| {
-                    // Lengths match the plan by construction.
-                    let _ = self.r2c.process_with_scratch(i, o, sc);
-                },
-            );
-        scratch.resize(rows * hc, Complex64::new(0.0, 0.0));
-        transpose::transpose(o, scratch, hc, rows);
-        self.columns(&self.col_forward, scratch);
-        transpose::transpose(scratch, o, rows, hc);
+    /// Buffers for [`RealFft2::column_block`], one set per worker.
+    pub fn column_scratch(&self) -> ColumnScratch<T> {
+        let zero = Complex::new(T::zero(), T::zero());
+        let n = self
+            .col_forward
+            .get_inplace_scratch_len()
+            .max(self.col_inverse.get_inplace_scratch_len());
+        ColumnScratch {
+            block: vec![zero; BLOCK_COLS * self.rows],
+            fft: vec![zero; n],
+        }
     }
 
-    /// Forward transform of a frame produced row by row: `fill(r, row)` writes row `r`
-    /// (length `cols`) into a per-worker buffer, which is transformed straight into row `r`
-    /// of `out`. Padding, the f32 → f64 conversion and the real row transforms are one pass
-    /// over memory; no frame-sized real buffer exists. Otherwise as [`RealFft2::forward`]
-    /// (same result, bit for bit, as filling a frame and calling it).
-    pub fn forward_rows(
-        &self,
-        fill: impl Fn(usize, &mut [f64]) + Sync,
-        out: &mut Array2<Complex64>,
-        scratch: &mut Vec<Complex64>,
-    ) {
+    /// Row pass: `fill(r, row)` writes row `r` (length `cols`) into a per-worker buffer,
+    /// which is transformed (real → complex, unnormalised) straight into row `r` of
+    /// `rowspec` (`[rows][cols/2+1]`, row-major). Rows in parallel.
+    pub fn rows_forward(&self, fill: impl Fn(usize, &mut [T]) + Sync, rowspec: &mut [Complex<T>]) {
         let (rows, cols) = (self.rows, self.cols);
         let hc = cols / 2 + 1;
-        assert_eq!(out.dim(), (rows, hc), "RealFft2::forward_rows output shape");
-        let o = out.as_slice_mut().expect("standard layout");
-        o.par_chunks_mut(hc).enumerate().for_each_init(
-            || (vec![0.0f64; cols], self.r2c.make_scratch_vec()),
+        assert_eq!(rowspec.len(), rows * hc, "RealFft2::rows_forward length");
+        rowspec.par_chunks_mut(hc).enumerate().for_each_init(
+            || (vec![T::zero(); cols], self.r2c.make_scratch_vec()),
             |(row, sc), (r, o)| {
                 fill(r, row);
                 // Lengths match the plan by construction.
                 let _ = self.r2c.process_with_scratch(row, o, sc);
             },
         );
-        scratch.resize(rows * hc, Complex64::new(0.0, 0.0));
-        transpose::transpose(o, scratch, hc, rows);
-        self.columns(&self.col_forward, scratch);
-        transpose::transpose(scratch, o, rows, hc);
+    }
+
+    /// Column pass of one block: gathers columns `u0 .. u0+n` (n ≤ [`BLOCK_COLS`]) of the
+    /// row spectra `rowspec` (`[rows][cols/2+1]`) into the worker's buffer as `[n][rows]`,
+    /// transforms each column (forward, or inverse when `inverse`; unnormalised) and
+    /// returns them: element `j·rows + v` is frequency (v, u0 + j) of the 2-D spectrum.
+    pub fn column_block<'a>(
+        &self,
+        rowspec: &[Complex<T>],
+        u0: usize,
+        n: usize,
+        inverse: bool,
+        sc: &'a mut ColumnScratch<T>,
+    ) -> &'a mut [Complex<T>] {
+        let rows = self.rows;
+        let hc = self.cols / 2 + 1;
+        debug_assert!(n <= BLOCK_COLS && u0 + n <= hc);
+        let blk = &mut sc.block[..n * rows];
+        for (r, src) in rowspec.chunks_exact(hc).enumerate() {
+            for (j, s) in src[u0..u0 + n].iter().enumerate() {
+                blk[j * rows + r] = *s;
+            }
+        }
+        let fft = if inverse {
+            &self.col_inverse
+        } else {
+            &self.col_forward
+        };
+        fft.process_with_scratch(blk, &mut sc.fft);
+        blk
+    }
+
+    /// Column pass of a whole frame: the 2-D spectrum of the row spectra `rowspec`
+    /// (`[rows][cols/2+1]`) in transposed layout `out_t[u·rows + v]`, blocks in parallel.
+    pub fn columns_transposed(
+        &self,
+        rowspec: &[Complex<T>],
+        out_t: &mut [Complex<T>],
+        inverse: bool,
+    ) {
+        let rows = self.rows;
+        assert_eq!(out_t.len(), rowspec.len(), "RealFft2 column pass length");
+        out_t
+            .par_chunks_mut(BLOCK_COLS * rows)
+            .enumerate()
+            .for_each_init(
+                || self.column_scratch(),
+                |sc, (bi, o)| {
+                    let n = o.len() / rows;
+                    o.copy_from_slice(self.column_block(rowspec, bi * BLOCK_COLS, n, inverse, sc));
+                },
+            );
+    }
+
+    /// Forward transform of `input` (`[rows, cols]`, standard layout; left unchanged) into
+    /// `out` (`[rows, cols/2+1]`), unnormalised:
+    /// `X[v,u] = Σ x[y,x] exp(−2πi (vy/rows + ux/cols))`. `scratch` (frame-sized, resized
+    /// as needed) can be reused across calls.
+    pub fn forward(
+        &self,
+        input: &mut Array2<T>,
+        out: &mut Array2<Complex<T>>,
+        scratch: &mut Vec<Complex<T>>,
+    ) {
+        let inp = input.as_standard_layout();
+        self.forward_rows(
+            |r, row| row.copy_from_slice(inp.row(r).as_slice().expect("standard layout")),
+            out,
+            scratch,
+        );
+    }
+
+    /// Forward transform of a frame produced row by row (`fill` as in
+    /// [`RealFft2::rows_forward`]); otherwise as [`RealFft2::forward`] (same result, bit
+    /// for bit).
+    pub fn forward_rows(
+        &self,
+        fill: impl Fn(usize, &mut [T]) + Sync,
+        out: &mut Array2<Complex<T>>,
+        scratch: &mut Vec<Complex<T>>,
+    ) {
+        let (rows, hc) = self.spectrum_shape();
+        assert_eq!(out.dim(), (rows, hc), "RealFft2::forward output shape");
+        let o = out.as_slice_mut().expect("standard layout");
+        self.rows_forward(fill, o);
+        scratch.resize(rows * hc, Complex::new(T::zero(), T::zero()));
+        self.columns_transposed(o, scratch, false);
+        untranspose(scratch, o, rows, hc);
     }
 
     /// Inverse transform of a Hermitian half-plane spectrum (`[rows, cols/2+1]`, used as
@@ -123,20 +279,19 @@ impl RealFft2 {
     /// `inverse(forward(x)) = x`. `scratch` as in [`RealFft2::forward`].
     pub fn inverse(
         &self,
-        spectrum: &mut Array2<Complex64>,
-        out: &mut Array2<f64>,
-        scratch: &mut Vec<Complex64>,
+        spectrum: &mut Array2<Complex<T>>,
+        out: &mut Array2<T>,
+        scratch: &mut Vec<Complex<T>>,
     ) {
         let (rows, cols) = (self.rows, self.cols);
         let hc = cols / 2 + 1;
         assert_eq!(spectrum.dim(), (rows, hc), "RealFft2::inverse input shape");
         assert_eq!(out.dim(), (rows, cols), "RealFft2::inverse output shape");
         let s = spectrum.as_slice_mut().expect("standard layout");
-        scratch.resize(rows * hc, Complex64::new(0.0, 0.0));
-        transpose::transpose(s, scratch, hc, rows);
-        self.columns(&self.col_inverse, scratch);
-        transpose::transpose(scratch, s, rows, hc);
-        let norm = 1.0 / (rows * cols) as f64;
+        scratch.resize(rows * hc, Complex::new(T::zero(), T::zero()));
+        self.columns_transposed(s, scratch, true);
+        untranspose(scratch, s, rows, hc);
+        let norm = T::nearest_from_f64(1.0 / (rows * cols) as f64);
         let o = out.as_slice_mut().expect("standard layout");
         o.par_chunks_mut(cols)
             .zip(s.par_chunks_mut(hc))
@@ -145,41 +300,56 @@ impl RealFft2 {
                 |sc, (o, i)| {
                     // realfft requires exactly real DC (and Nyquist for even lengths) bins; for
                     // the spectrum of a real image they are real up to rounding.
-                    i[0].im = 0.0;
+                    i[0].im = T::zero();
                     if cols % 2 == 0 {
-                        i[hc - 1].im = 0.0;
+                        i[hc - 1].im = T::zero();
                     }
                     let _ = self.c2r.process_with_scratch(i, o, sc);
                     for v in o.iter_mut() {
-                        *v *= norm;
+                        *v = *v * norm;
                     }
                 },
             );
     }
+}
 
-    /// Complex transforms of every length-`rows` run in `data`, in parallel.
-    fn columns(&self, fft: &Arc<dyn Fft<f64>>, data: &mut [Complex64]) {
-        let rows = self.rows;
-        data.par_chunks_mut(rows * COLS_PER_TASK).for_each_init(
-            || vec![Complex64::new(0.0, 0.0); fft.get_inplace_scratch_len()],
-            |scratch, chunk| fft.process_with_scratch(chunk, scratch),
-        );
-    }
+/// Rows per task of [`untranspose`]: 16 rows read 16 consecutive elements of every
+/// transposed column (one or two cache lines each).
+const UNTRANSPOSE_ROWS: usize = 16;
+
+/// `out[v·hc + u] = t[u·rows + v]`: a transposed `[hc][rows]` buffer back to `[rows][hc]`,
+/// blocks of rows in parallel.
+pub fn untranspose<C: Copy + Send + Sync>(t: &[C], out: &mut [C], rows: usize, hc: usize) {
+    assert_eq!(t.len(), rows * hc, "untranspose length");
+    assert_eq!(out.len(), rows * hc, "untranspose length");
+    out.par_chunks_mut(UNTRANSPOSE_ROWS * hc)
+        .enumerate()
+        .for_each(|(bi, o)| {
+            let v0 = bi * UNTRANSPOSE_ROWS;
+            let nv = o.len() / hc;
+            for u in 0..hc {
+                let col = &t[u * rows + v0..u * rows + v0 + nv];
+                for (dv, x) in col.iter().enumerate() {
+                    o[dv * hc + u] = *x;
+                }
+            }
+        });
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use num_complex::Complex64;
 
     /// The forward transform equals the DFT definition summed directly, and the inverse
-    /// recovers the input.
+    /// recovers the input; shapes span more than one column block.
     #[test]
     fn matches_direct_dft_and_round_trips() {
-        for (rows, cols) in [(6usize, 8usize), (5, 7), (4, 9)] {
+        for (rows, cols) in [(6usize, 8usize), (5, 7), (4, 9), (7, 40), (3, 35)] {
             let x = Array2::from_shape_fn((rows, cols), |(r, c)| {
                 ((r * 7 + c * 3) % 11) as f64 - 0.3 * c as f64
             });
-            let fft = RealFft2::new(rows, cols);
+            let fft = RealFft2::<f64>::new(rows, cols);
             let mut inp = x.clone();
             let mut spec = Array2::zeros(fft.spectrum_shape());
             let mut scratch = Vec::new();
@@ -209,11 +379,43 @@ mod tests {
                 &mut scratch,
             );
             assert_eq!(spec, spec2);
+            // The f32 transform agrees to f32 rounding.
+            let f32fft = RealFft2::<f32>::new(rows, cols);
+            let mut spec32 = Array2::zeros(f32fft.spectrum_shape());
+            let mut s32 = Vec::new();
+            f32fft.forward(&mut x.mapv(|v| v as f32), &mut spec32, &mut s32);
+            let scale = x.iter().map(|v| v.abs()).sum::<f64>();
+            for (a, b) in spec32.iter().zip(spec.iter()) {
+                let d = Complex64::new(a.re as f64, a.im as f64) - b;
+                assert!(d.norm() < 1e-6 * scale, "f32 vs f64 {rows}x{cols}");
+            }
             let mut back = Array2::zeros((rows, cols));
             fft.inverse(&mut spec, &mut back, &mut scratch);
             for (a, b) in back.iter().zip(x.iter()) {
                 assert!((a - b).abs() < 1e-10);
             }
         }
+    }
+
+    /// The untranspose is the transpose, for shapes that do not divide the row blocks.
+    #[test]
+    fn untranspose_is_the_transpose() {
+        let (rows, hc) = (37, 5);
+        let t: Vec<usize> = (0..rows * hc).collect();
+        let mut out = vec![0; rows * hc];
+        untranspose(&t, &mut out, rows, hc);
+        for v in 0..rows {
+            for u in 0..hc {
+                assert_eq!(out[v * hc + u], t[u * rows + v]);
+            }
+        }
+    }
+
+    #[test]
+    fn precision_parses_and_rejects() {
+        assert_eq!("f32".parse::<FftPrecision>().unwrap(), FftPrecision::F32);
+        assert_eq!("f64".parse::<FftPrecision>().unwrap(), FftPrecision::F64);
+        let e = "f16".parse::<FftPrecision>().unwrap_err().to_string();
+        assert!(e.contains("f16") && e.contains("f64"), "{e}");
     }
 }

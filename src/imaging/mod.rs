@@ -38,8 +38,14 @@ use crate::scene::{CubeMeta, Geometry, RadianceUnits};
 use crate::sensor::{Component, FrequencyGrid, Sensor, SystemOtf};
 use crate::spectrum::Spectrum;
 
-use fft::RealFft2;
+use fft::{FftFloat, FftPrecision, RealFft2, BLOCK_COLS};
 use otf_table::{BandProfile, RadialTables};
+
+/// Bands read, row-transformed and accumulated together: the column pass then adds all of
+/// them to an accumulator block while it is in cache, and each parallel phase has enough
+/// work for the workers. Memory is a fixed number of planes and row spectra, whatever the
+/// number of bands in the cube.
+pub const BANDS_PER_CHUNK: usize = 4;
 
 /// Fraction of the sensor's spectral response weight that may fall outside the input
 /// wavelength grid (issue requirement: the grid must cover all but 0.1 %).
@@ -455,14 +461,17 @@ pub struct ImagingStats {
     pub bands_used: usize,
     /// Padded FFT frame (rows, cols).
     pub padded_shape: (usize, usize),
-    /// Seconds spent reading bands.
+    /// Seconds spent reading bands (from the second chunk on, overlapped with the
+    /// transforms of the previous chunk).
     pub read_s: f64,
-    /// Seconds in forward FFTs.
+    /// Seconds in the row pass of the forward FFTs (padding fused in).
     pub fft_s: f64,
-    /// Seconds evaluating OTFs and accumulating.
+    /// Seconds in the fused column pass: column FFTs, OTF lookup and accumulation.
     pub otf_s: f64,
     /// Seconds in the inverse transform and sampling.
     pub inverse_s: f64,
+    /// Precision of the forward transforms.
+    pub precision: FftPrecision,
 }
 
 /// A configured imaging chain for one sensor and one input geometry: reusable across the
@@ -473,14 +482,16 @@ pub struct Imager {
     otf: SystemOtf,
     weights: SpectralWeights,
     sampling: Sampling,
-    fft: RealFft2,
+    fft: RealFft2<f64>,
+    fft32: RealFft2<f32>,
+    precision: FftPrecision,
     grid: FrequencyGrid,
     pad_y: PadMap,
     pad_x: PadMap,
     /// Chromatic components as 1-D tables, built once per run.
     tables: RadialTables,
-    /// Per half-plane frequency sample `[ρ (cycles/rad), achromatic product]`, row-major
-    /// `[fy, fx]`: computed once per frame size.
+    /// Per half-plane frequency sample `[ρ (cycles/rad), achromatic product]`, in the
+    /// accumulator's transposed layout `[fx][fy]`: computed once per frame size.
     radial: Vec<[f64; 2]>,
     /// Largest ρ on the grid, cycles/rad.
     rho_max: f64,
@@ -537,17 +548,15 @@ impl Imager {
             (sensor.detector.rows, sensor.detector.cols),
             1,
         )?;
-        let fft = RealFft2::new(sampling.y.padded_len, sampling.x.padded_len);
+        let fft = RealFft2::<f64>::new(sampling.y.padded_len, sampling.x.padded_len);
+        let fft32 = RealFft2::<f32>::new(sampling.y.padded_len, sampling.x.padded_len);
         let grid = FrequencyGrid::real_fft(sampling.y.padded_len, sampling.x.padded_len, dy, dx);
         let pad_y = PadMap::new(meta.rows, sampling.y.pad_before, sampling.y.padded_len);
         let pad_x = PadMap::new(meta.cols, sampling.x.pad_before, sampling.x.padded_len);
         let achromatic = otf.on_grid(&grid).achromatic().clone();
-        let radial: Vec<[f64; 2]> = grid
-            .fy
-            .iter()
-            .flat_map(|fy| grid.fx.iter().map(move |fx| fx.hypot(*fy)))
-            .zip(achromatic.iter())
-            .map(|(rho, a)| [rho, *a])
+        let radial: Vec<[f64; 2]> = (0..grid.fx.len())
+            .flat_map(|u| (0..grid.fy.len()).map(move |v| (v, u)))
+            .map(|(v, u)| [grid.fx[u].hypot(grid.fy[v]), achromatic[[v, u]]])
             .collect();
         let rho_max = radial.iter().map(|p| p[0]).fold(0.0, f64::max);
         let (lo, hi) = active
@@ -563,6 +572,8 @@ impl Imager {
             weights,
             sampling,
             fft,
+            fft32,
+            precision: FftPrecision::default(),
             grid,
             pad_y,
             pad_x,
@@ -587,56 +598,149 @@ impl Imager {
         &self.otf
     }
 
+    /// Selects the precision of the forward transforms (default [`FftPrecision::F32`]).
+    pub fn with_precision(mut self, precision: FftPrecision) -> Self {
+        self.precision = precision;
+        self
+    }
+
+    /// The precision of the forward transforms.
+    pub fn precision(&self) -> FftPrecision {
+        self.precision
+    }
+
     /// Images frame `frame` of `reader`: returns the mean (noise-free) photo-electrons per
-    /// detector pixel, `[rows, cols]`. `progress` is called after each band.
+    /// detector pixel, `[rows, cols]`. `progress(bands done, bands)` is called after each
+    /// chunk of [`BANDS_PER_CHUNK`] bands.
+    ///
+    /// Bands are read in chunks ([`CubeReader::read_bands`]); each chunk is padded and
+    /// row-transformed (rows of all its bands in parallel), then the column pass runs over
+    /// blocks of column frequencies in parallel, adding every band of the chunk, in band
+    /// order, to the block of the f64 accumulator (`[fx][fy]` layout) it owns. Every
+    /// accumulator sample is updated by one worker in band order, so the result is the
+    /// same, bit for bit, for any number of threads.
     pub fn mean_electrons(
         &self,
+        reader: &mut dyn CubeReader,
+        frame: usize,
+        progress: impl FnMut(usize, usize),
+    ) -> Result<(Array2<f64>, ImagingStats)> {
+        match self.precision {
+            FftPrecision::F32 => self.mean_electrons_in(&self.fft32, reader, frame, progress),
+            FftPrecision::F64 => self.mean_electrons_in(&self.fft, reader, frame, progress),
+        }
+    }
+
+    /// [`Imager::mean_electrons`] with forward transforms in `T`.
+    fn mean_electrons_in<T: FftFloat>(
+        &self,
+        fft: &RealFft2<T>,
         reader: &mut dyn CubeReader,
         frame: usize,
         mut progress: impl FnMut(usize, usize),
     ) -> Result<(Array2<f64>, ImagingStats)> {
         let (ny, nx) = (self.sampling.y.padded_len, self.sampling.x.padded_len);
         let hc = nx / 2 + 1;
-        let mut acc = Array2::<Complex64>::zeros(self.fft.spectrum_shape());
-        let mut spec = Array2::<Complex64>::zeros(self.fft.spectrum_shape());
-        let mut scratch = Vec::new();
+        let mut acc_t = vec![Complex64::new(0.0, 0.0); hc * ny];
         let mut stats = ImagingStats {
             padded_shape: (ny, nx),
+            precision: self.precision,
             ..Default::default()
         };
         let active = self.weights.active_bands();
-        for (i, &b) in active.iter().enumerate() {
-            let t0 = Instant::now();
-            let plane = reader.read_band(frame, b)?;
-            let t1 = Instant::now();
-            let view = plane.view();
-            self.fft.forward_rows(
-                |r, row| self.pad_row(&view, r, row),
-                &mut spec,
-                &mut scratch,
-            );
-            let t2 = Instant::now();
-            let w = self.weights.electrons_per_unit[b];
-            let profile = self.band_profile(self.weights.wavelength_um[b]);
-            accumulate(&mut acc, &spec, &self.radial, &profile, w, hc);
-            let t3 = Instant::now();
-            stats.read_s += (t1 - t0).as_secs_f64();
-            stats.fft_s += (t2 - t1).as_secs_f64();
-            stats.otf_s += (t3 - t2).as_secs_f64();
-            stats.bands_used += 1;
-            progress(i + 1, active.len());
-        }
+        let zero = num_complex::Complex::new(T::zero(), T::zero());
+        let mut rowspecs: Vec<Vec<num_complex::Complex<T>>> = Vec::new();
+        let chunks: Vec<&[usize]> = active.chunks(BANDS_PER_CHUNK).collect();
         let t0 = Instant::now();
+        let mut next = match chunks.first() {
+            Some(c) => Some(reader.read_bands(frame, c)?),
+            None => None,
+        };
+        stats.read_s += t0.elapsed().as_secs_f64();
+        for (ci, chunk) in chunks.iter().enumerate() {
+            let planes = next.take().unwrap_or_default();
+            if planes.len() != chunk.len() {
+                return Err(Error::OutOfRange(format!(
+                    "the reader returned {} planes for {} bands",
+                    planes.len(),
+                    chunk.len()
+                )));
+            }
+            rowspecs.resize_with(chunk.len(), || vec![zero; ny * hc]);
+            let (mut fft_s, mut otf_s) = (0.0, 0.0);
+            // The chunk is transformed and accumulated on the worker pool while this thread
+            // reads the next one (reading overlaps computing; the order of the arithmetic,
+            // hence the result, is unchanged).
+            let (read, read_s) = rayon::in_place_scope(|scope| {
+                let (rs, acc, fft_s, otf_s) = (&mut rowspecs, &mut acc_t, &mut fft_s, &mut otf_s);
+                let planes = &planes;
+                scope.spawn(move |_| {
+                    let t1 = Instant::now();
+                    rs.par_iter_mut()
+                        .zip(planes.par_iter())
+                        .for_each(|(rs, plane)| {
+                            let view = plane.view();
+                            fft.rows_forward(|r, row| self.pad_row(&view, r, row), rs);
+                        });
+                    let t2 = Instant::now();
+                    let bands: Vec<(f64, BandProfile)> = chunk
+                        .iter()
+                        .map(|&b| {
+                            let w = self.weights.electrons_per_unit[b];
+                            (w, self.band_profile(self.weights.wavelength_um[b]))
+                        })
+                        .collect();
+                    accumulate_chunk(fft, &rs[..chunk.len()], &bands, &self.radial, acc);
+                    *fft_s = (t2 - t1).as_secs_f64();
+                    *otf_s = t2.elapsed().as_secs_f64();
+                });
+                let t = Instant::now();
+                let read = chunks
+                    .get(ci + 1)
+                    .map(|c| reader.read_bands(frame, c))
+                    .transpose();
+                (read, t.elapsed().as_secs_f64())
+            });
+            drop(planes);
+            next = read?;
+            stats.read_s += read_s;
+            stats.fft_s += fft_s;
+            stats.otf_s += otf_s;
+            stats.bands_used += chunk.len();
+            progress(stats.bands_used, active.len());
+        }
+        drop(rowspecs);
+        let t0 = Instant::now();
+        let mut acc = Array2::<Complex64>::zeros((ny, hc));
+        fft::untranspose(&acc_t, acc.as_slice_mut().expect("standard layout"), ny, hc);
+        drop(acc_t);
+        let e = self.detector_image(&mut acc);
+        stats.inverse_s = t0.elapsed().as_secs_f64();
+        Ok((e, stats))
+    }
+
+    /// The detector image of an accumulated half-plane spectrum (`[fy, fx]`, the padded
+    /// frame's [`Imager::frequency_grid`]; used as scratch): one inverse transform and
+    /// point sampling for an integer detector/scene ratio, trigonometric interpolation
+    /// otherwise (see [`Sampling`]), then cos⁴ if the optics ask for it.
+    pub fn detector_image(&self, acc: &mut Array2<Complex64>) -> Array2<f64> {
+        let mut scratch = Vec::new();
         let mut e = if self.sampling.integer {
-            self.sample_integer(&mut acc, &mut scratch)
+            self.sample_integer(acc, &mut scratch)
         } else {
-            self.sample_trigonometric(&acc)
+            self.sample_trigonometric(acc)
         };
         if self.sensor.optics.cos4 {
             self.apply_cos4(&mut e);
         }
-        stats.inverse_s = t0.elapsed().as_secs_f64();
-        Ok((e, stats))
+        e
+    }
+
+    /// `[ρ (cycles/rad), achromatic OTF product]` per half-plane frequency sample, in the
+    /// accumulator's transposed layout: sample `(fy index v, fx index u)` at `u·rows + v`
+    /// (the `radial` argument of [`accumulate_chunk`]).
+    pub fn radial_samples(&self) -> &[[f64; 2]] {
+        &self.radial
     }
 
     /// The padded FFT frame of one band plane, as the engine transforms it (rows and
@@ -662,7 +766,7 @@ impl Imager {
         let profile = self.band_profile(wavelength_um);
         let (ny, hc) = self.fft.spectrum_shape();
         Array2::from_shape_fn((ny, hc), |(j, k)| {
-            let p = self.radial[j * hc + k];
+            let p = self.radial[k * ny + j];
             p[1] * profile.eval(p[0])
         })
     }
@@ -684,14 +788,15 @@ impl Imager {
             });
     }
 
-    /// Row `r` of the padded frame of a band plane (see `PadMap`), converted to f64.
-    fn pad_row(&self, plane: &ArrayView2<f32>, r: usize, out: &mut [f64]) {
+    /// Row `r` of the padded frame of a band plane (see `PadMap`), blended in f64 and
+    /// rounded to the transform's type.
+    fn pad_row<T: FftFloat>(&self, plane: &ArrayView2<f32>, r: usize, out: &mut [T]) {
         let ty = self.pad_y.taps[r];
         let (ra, rb) = (plane.row(ty.a), plane.row(ty.b));
         // Blend of the two source rows (equal rows inside the image).
         let v = |c: usize| ty.w * ra[c] as f64 + (1.0 - ty.w) * rb[c] as f64;
         for (o, tx) in out.iter_mut().zip(&self.pad_x.taps) {
-            *o = tx.w * v(tx.a) + (1.0 - tx.w) * v(tx.b);
+            *o = T::nearest_from_f64(tx.w * v(tx.a) + (1.0 - tx.w) * v(tx.b));
         }
     }
 
@@ -820,29 +925,41 @@ impl Imager {
     }
 }
 
-/// The fused accumulation pass of one band: `acc += spec · w · A(f) · P_λ(ρ(f))` over the
-/// half plane, with A the achromatic product and P_λ the band's tabulated chromatic
-/// profile (no per-band OTF array). Rows are processed in parallel; every sample is
-/// computed by one worker in the same way whatever the thread count, so the result does
-/// not depend on it.
-fn accumulate(
-    acc: &mut Array2<Complex64>,
-    spec: &Array2<Complex64>,
+/// The fused column pass of a chunk of bands: for every block of [`BLOCK_COLS`] column
+/// frequencies (blocks in parallel), each band's row spectra are column-transformed
+/// ([`RealFft2::column_block`]) and added in band order as
+/// `acc += spec · w · A(f) · P_λ(ρ(f))`, with A the achromatic product and P_λ the band's
+/// tabulated chromatic profile (no per-band OTF array, no frame-sized transpose). `acc_t`
+/// and `radial` are in the transposed `[fx][fy]` layout. Every sample is computed by one
+/// worker in the same way whatever the thread count, so the result does not depend on it.
+///
+/// `rowspecs[c]` is band c's row pass ([`RealFft2::rows_forward`]) and `bands[c]` its
+/// spectral weight and profile ([`Imager::band_profile`]).
+pub fn accumulate_chunk<T: FftFloat>(
+    fft: &RealFft2<T>,
+    rowspecs: &[Vec<num_complex::Complex<T>>],
+    bands: &[(f64, BandProfile)],
     radial: &[[f64; 2]],
-    profile: &BandProfile,
-    w: f64,
-    hc: usize,
+    acc_t: &mut [Complex64],
 ) {
-    let a = acc.as_slice_mut().expect("standard layout");
-    let s = spec.as_slice().expect("standard layout");
-    a.par_chunks_mut(hc)
-        .zip(s.par_chunks(hc))
-        .zip(radial.par_chunks(hc))
-        .for_each(|((a, s), r)| {
-            for ((a, s), p) in a.iter_mut().zip(s).zip(r) {
-                if p[1] != 0.0 {
-                    *a += s * (w * p[1] * profile.eval(p[0]));
+    let rows = fft.shape().0;
+    acc_t
+        .par_chunks_mut(BLOCK_COLS * rows)
+        .zip(radial.par_chunks(BLOCK_COLS * rows))
+        .enumerate()
+        .for_each_init(
+            || fft.column_scratch(),
+            |sc, (bi, (a, r))| {
+                let n = a.len() / rows;
+                for (rs, (w, profile)) in rowspecs.iter().zip(bands) {
+                    let blk = fft.column_block(rs, bi * BLOCK_COLS, n, false, sc);
+                    for ((a, s), p) in a.iter_mut().zip(blk.iter()).zip(r) {
+                        if p[1] != 0.0 {
+                            let s = Complex64::new(s.re.widen(), s.im.widen());
+                            *a += s * (w * p[1] * profile.eval(p[0]));
+                        }
+                    }
                 }
-            }
-        });
+            },
+        );
 }

@@ -31,30 +31,12 @@ impl SampleType {
             SampleType::F64 => 8,
         }
     }
-
-    /// Decodes one sample from the first `size()` bytes of `b`.
-    #[inline]
-    pub(crate) fn decode(self, b: &[u8], big_endian: bool) -> f64 {
-        macro_rules! get {
-            ($t:ty, $n:expr) => {{
-                let mut a = [0u8; $n];
-                a.copy_from_slice(&b[..$n]);
-                if big_endian {
-                    <$t>::from_be_bytes(a)
-                } else {
-                    <$t>::from_le_bytes(a)
-                }
-            }};
-        }
-        match self {
-            SampleType::I16 => f64::from(get!(i16, 2)),
-            SampleType::U16 => f64::from(get!(u16, 2)),
-            SampleType::I32 => f64::from(get!(i32, 4)),
-            SampleType::F32 => f64::from(get!(f32, 4)),
-            SampleType::F64 => get!(f64, 8),
-        }
-    }
 }
+
+/// Largest buffer a reader fills with one `read` call, bytes (4 MiB): large enough that
+/// reads run at disk (or page-cache) speed, small enough that it does not show in the
+/// peak memory of a run.
+pub(crate) const READ_BLOCK_BYTES: usize = 4 << 20;
 
 /// Converts packed samples to f32, applying `value = gain · stored + offset` when a
 /// scaling is given, and appends them to `out`.
@@ -65,19 +47,81 @@ pub(crate) fn decode_into(
     scale: Option<(f64, f64)>,
     out: &mut Vec<f32>,
 ) {
-    let n = ty.size();
-    match scale {
-        None => out.extend(
-            bytes
-                .chunks_exact(n)
-                .map(|c| ty.decode(c, big_endian) as f32),
-        ),
-        Some((gain, offset)) => out.extend(
-            bytes
-                .chunks_exact(n)
-                .map(|c| (gain * ty.decode(c, big_endian) + offset) as f32),
-        ),
+    let n = bytes.len() / ty.size();
+    decode_strided(bytes, ty, big_endian, scale, 0, 1, n, out);
+}
+
+/// Appends to `out` the samples `first`, `first + stride`, … (`count` of them, indices in
+/// samples) of the packed samples `bytes`, converted as [`decode_into`] converts them.
+/// One loop per sample type, so the type is not matched per sample.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn decode_strided(
+    bytes: &[u8],
+    ty: SampleType,
+    big_endian: bool,
+    scale: Option<(f64, f64)>,
+    first: usize,
+    stride: usize,
+    count: usize,
+    out: &mut Vec<f32>,
+) {
+    macro_rules! run {
+        ($t:ty, $n:expr) => {{
+            let get = |i: usize| -> f64 {
+                let mut a = [0u8; $n];
+                a.copy_from_slice(&bytes[i * $n..i * $n + $n]);
+                let v = if big_endian {
+                    <$t>::from_be_bytes(a)
+                } else {
+                    <$t>::from_le_bytes(a)
+                };
+                v as f64
+            };
+            let idx = (0..count).map(|k| first + k * stride);
+            match scale {
+                None => out.extend(idx.map(|i| get(i) as f32)),
+                Some((g, o)) => out.extend(idx.map(|i| (g * get(i) + o) as f32)),
+            }
+        }};
     }
+    match ty {
+        SampleType::I16 => run!(i16, 2),
+        SampleType::U16 => run!(u16, 2),
+        SampleType::I32 => run!(i32, 4),
+        SampleType::F32 => run!(f32, 4),
+        SampleType::F64 => run!(f64, 8),
+    }
+}
+
+/// Reads `count` contiguous samples starting at byte `offset` and appends them, decoded
+/// as [`decode_into`] decodes them, to `out`: sequential reads of at most
+/// [`READ_BLOCK_BYTES`], so a band-sequential plane costs one read (planes up to 4 MiB)
+/// or a few, and never a second full-size byte buffer next to the decoded plane.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn read_samples(
+    file: &mut File,
+    path: &Path,
+    offset: u64,
+    count: usize,
+    ty: SampleType,
+    big_endian: bool,
+    scale: Option<(f64, f64)>,
+    out: &mut Vec<f32>,
+) -> Result<()> {
+    let size = ty.size();
+    let per_read = (READ_BLOCK_BYTES / size).max(1);
+    let mut buf = vec![0u8; count.min(per_read) * size];
+    file.seek(SeekFrom::Start(offset))
+        .map_err(|e| Error::io(path, e))?;
+    let mut done = 0;
+    while done < count {
+        let n = (count - done).min(per_read);
+        let bytes = &mut buf[..n * size];
+        file.read_exact(bytes).map_err(|e| Error::io(path, e))?;
+        decode_into(bytes, ty, big_endian, scale, out);
+        done += n;
+    }
+    Ok(())
 }
 
 /// Reads exactly `buf.len()` bytes at `offset`, naming `path` on failure.

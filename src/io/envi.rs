@@ -74,10 +74,13 @@ use ndarray::Array2;
 use crate::error::{Error, Result};
 use crate::scene::{check_radiance_plane, Cube, CubeMeta};
 
-use super::binary::{check_size, decode_into, read_at, SampleType};
+use super::binary::{
+    check_size, decode_into, decode_strided, read_at, read_samples, SampleType, READ_BLOCK_BYTES,
+};
 use super::metadata::{
     default_units, order_bands, resolve_geometry, resolve_units, BandOrder, ReadOptions,
 };
+use super::spill::BandSpill;
 use super::{atomic_write, write_all, CubeReader};
 
 /// Header keys stating the radiance units, in precedence order.
@@ -468,12 +471,24 @@ fn find_pair(path: &Path) -> Result<(PathBuf, PathBuf)> {
     ))
 }
 
-/// Reads an ENVI cube one band at a time.
+/// Reads an ENVI cube band by band or a chunk of bands at a time.
 ///
-/// Opening parses and checks the header and the data file's size; each
-/// [`read_band`](CubeReader::read_band) reads only the bytes of that band (one seek for
-/// band-sequential files, one read per row for interleaved ones), converts them to f32
-/// with the header's gain and offset, and checks the plane is physical radiance.
+/// Opening parses and checks the header and the data file's size. Reading converts the
+/// stored samples to f32 with the header's gain and offset, sets `data ignore value`
+/// samples to 0, and checks every plane is physical radiance (finite, non-negative; the
+/// error names the file, band and pixel). Only the requested bands are decoded and
+/// checked, and the I/O follows the interleave:
+///
+/// - **BSQ**: one sequential read per band (in 4 MiB pieces for larger planes).
+/// - **BIL**: one read per image row spanning the lines of the requested bands (several
+///   rows per read when every band is requested), so a chunk of adjacent bands costs its
+///   own bytes and nothing more.
+/// - **BIP**: every band's samples are spread over the whole frame. Frames up to
+///   [`BIP_DIRECT_FRAME_BYTES`] (or a request for every band) are read whole, in 4 MiB
+///   row blocks, picking the requested samples out of each pixel. Larger frames are
+///   transposed once, on the first read, into a band-order scratch file in the temporary
+///   directory (unlinked at creation; see `spill`), and each band is then one sequential
+///   read: one pass over the file, memory of one block, instead of one pass per chunk.
 #[derive(Debug)]
 pub struct EnviReader {
     meta: CubeMeta,
@@ -495,6 +510,10 @@ pub struct EnviReader {
     masked: Vec<Option<usize>>,
     units_source: String,
     warnings: Vec<String>,
+    /// BIP frames above this size go through the scratch file.
+    bip_direct_frame_bytes: u64,
+    /// The band-order scratch file of a large BIP frame, once created.
+    spill: Option<BandSpill>,
 }
 
 impl EnviReader {
@@ -750,6 +769,8 @@ impl EnviReader {
             ignore,
             units_source: resolved.source,
             warnings,
+            bip_direct_frame_bytes: BIP_DIRECT_FRAME_BYTES,
+            spill: None,
         })
     }
 
@@ -764,74 +785,228 @@ impl EnviReader {
     }
 }
 
-impl CubeReader for EnviReader {
-    fn meta(&self) -> &CubeMeta {
-        &self.meta
+/// Frames up to this size (bytes of the data file) are read pixel-interleaved directly,
+/// whole, for every chunk of bands; larger BIP frames go through a [`BandSpill`] (64 MiB).
+pub const BIP_DIRECT_FRAME_BYTES: u64 = 64 << 20;
+
+impl EnviReader {
+    /// BIP frames larger than `bytes` are transposed once into a band-order scratch file
+    /// ([`BIP_DIRECT_FRAME_BYTES`] by default); smaller ones are re-read whole for every
+    /// call. Both give identical planes; the setting trades temporary disk space against
+    /// repeated reads (tests use it to exercise both paths on small cubes).
+    pub fn set_bip_direct_frame_bytes(&mut self, bytes: u64) {
+        self.bip_direct_frame_bytes = bytes;
     }
 
-    fn read_band(&mut self, frame: usize, band: usize) -> Result<Array2<f32>> {
+    /// Whether a band-order scratch file is in use (BIP frames above the direct size, once
+    /// a band was read).
+    pub fn uses_scratch_file(&self) -> bool {
+        self.spill.is_some()
+    }
+
+    /// Checks a request names frame 0 and existing bands.
+    fn check_request(&self, frame: usize, bands: &[usize]) -> Result<()> {
         if frame != 0 {
             return Err(Error::OutOfRange(format!(
                 "{}: frame {frame} requested but an ENVI cube has one frame (0)",
                 self.data_path.display()
             )));
         }
-        if band >= self.meta.bands() {
+        if let Some(band) = bands.iter().find(|&&b| b >= self.meta.bands()) {
             return Err(Error::OutOfRange(format!(
                 "{}: band {band} requested but the cube has bands 0..{}",
                 self.data_path.display(),
                 self.meta.bands()
             )));
         }
-        let fb = self.band_map[band];
+        Ok(())
+    }
+
+    /// The `(gain, offset)` of stored band `fb`, if the header scales the data.
+    fn scale_of(&self, fb: usize) -> Option<(f64, f64)> {
+        self.scale.as_ref().map(|s| s[fb])
+    }
+
+    /// Stored band `fb` of a band-sequential file: one sequential read.
+    fn read_bsq(&mut self, fb: usize) -> Result<Vec<f32>> {
+        let n = self.meta.rows * self.meta.cols;
+        let offset = self.header_offset + (fb * n * self.ty.size()) as u64;
+        let mut values = Vec::with_capacity(n);
+        let scale = self.scale_of(fb);
+        read_samples(
+            &mut self.file,
+            &self.data_path,
+            offset,
+            n,
+            self.ty,
+            self.big_endian,
+            scale,
+            &mut values,
+        )?;
+        Ok(values)
+    }
+
+    /// Stored bands `fbs` of a band-interleaved-by-line file. Each image row holds one
+    /// line per band, so per row the span of lines from the lowest to the highest
+    /// requested band is read in one piece (several rows per read when the span is the
+    /// whole row) and the requested lines are decoded out of it.
+    fn read_bil(&mut self, fbs: &[usize]) -> Result<Vec<Vec<f32>>> {
         let (rows, cols, nb) = (self.meta.rows, self.meta.cols, self.file_bands);
+        let (Some(&lo), Some(&hi)) = (fbs.iter().min(), fbs.iter().max()) else {
+            return Ok(Vec::new());
+        };
         let bps = self.ty.size();
-        let scale = self.scale.as_ref().map(|s| s[fb]);
-        let mut values = Vec::with_capacity(rows * cols);
-        match self.interleave {
-            Interleave::Bsq => {
-                let plane = rows * cols * bps;
-                let mut buf = vec![0u8; plane];
-                let off = self.header_offset + (fb * plane) as u64;
-                read_at(&mut self.file, &self.data_path, off, &mut buf)?;
-                decode_into(&buf, self.ty, self.big_endian, scale, &mut values);
-            }
-            Interleave::Bil => {
-                let line = cols * bps;
-                let mut buf = vec![0u8; line];
-                for r in 0..rows {
-                    let off = self.header_offset + ((r * nb + fb) * line) as u64;
-                    read_at(&mut self.file, &self.data_path, off, &mut buf)?;
-                    decode_into(&buf, self.ty, self.big_endian, scale, &mut values);
+        let line = cols * bps;
+        let span = hi - lo + 1;
+        // Rows per read: consecutive rows are contiguous only when the span is the row.
+        let group = if span == nb {
+            (READ_BLOCK_BYTES / (nb * line)).clamp(1, rows)
+        } else {
+            1
+        };
+        let scales: Vec<Option<(f64, f64)>> = fbs.iter().map(|&fb| self.scale_of(fb)).collect();
+        let mut out: Vec<Vec<f32>> = fbs
+            .iter()
+            .map(|_| Vec::with_capacity(rows * cols))
+            .collect();
+        let mut buf = vec![0u8; group * span * line];
+        let mut r0 = 0;
+        while r0 < rows {
+            let g = group.min(rows - r0);
+            let bytes = &mut buf[..g * span * line];
+            let offset = self.header_offset + ((r0 * nb + lo) * line) as u64;
+            read_at(&mut self.file, &self.data_path, offset, bytes)?;
+            for r in 0..g {
+                let row = &bytes[r * span * line..(r + 1) * span * line];
+                for ((fb, scale), values) in fbs.iter().zip(&scales).zip(out.iter_mut()) {
+                    let at = (fb - lo) * line;
+                    decode_into(
+                        &row[at..at + line],
+                        self.ty,
+                        self.big_endian,
+                        *scale,
+                        values,
+                    );
                 }
             }
-            Interleave::Bip => {
-                // One image row holds every band of every pixel; read it whole (sequential
-                // I/O) and pick this band's samples out of it.
-                let line = cols * nb * bps;
-                let mut buf = vec![0u8; line];
-                for r in 0..rows {
-                    let off = self.header_offset + (r * line) as u64;
-                    read_at(&mut self.file, &self.data_path, off, &mut buf)?;
-                    let (g, o) = scale.unwrap_or((1.0, 0.0));
-                    values.extend(buf.chunks_exact(nb * bps).map(|px| {
-                        let raw = self.ty.decode(&px[fb * bps..], self.big_endian);
-                        if scale.is_some() {
-                            (g * raw + o) as f32
-                        } else {
-                            raw as f32
-                        }
-                    }));
-                }
-            }
+            r0 += g;
         }
+        Ok(out)
+    }
+
+    /// Stored bands `fbs` of a band-interleaved-by-pixel file: from the band-order scratch
+    /// file (created on first use) when the frame is larger than the direct size and the
+    /// request is not every band; otherwise by reading the frame's rows and picking the
+    /// requested samples out of every pixel.
+    fn read_bip(&mut self, fbs: &[usize]) -> Result<Vec<Vec<f32>>> {
+        let frame_bytes = self.frame_bytes();
+        let all_bands = {
+            let mut seen = vec![false; self.file_bands];
+            fbs.iter().for_each(|&fb| seen[fb] = true);
+            seen.iter().all(|s| *s)
+        };
+        if self.spill.is_none() && (frame_bytes <= self.bip_direct_frame_bytes || all_bands) {
+            return self.read_bip_direct(fbs);
+        }
+        if self.spill.is_none() {
+            self.spill = Some(self.transpose_bip()?);
+        }
+        let (spill, path) = (self.spill.as_mut(), &self.data_path);
+        let spill = spill.ok_or_else(|| Error::format(path, "scratch file missing"))?;
+        fbs.iter().map(|&fb| spill.read(path, fb)).collect()
+    }
+
+    /// Bytes of one frame in the data file.
+    fn frame_bytes(&self) -> u64 {
+        (self.meta.rows * self.meta.cols * self.file_bands * self.ty.size()) as u64
+    }
+
+    /// Rows of a BIP file per read (≥ 1, at most [`READ_BLOCK_BYTES`] unless one row is
+    /// larger).
+    fn bip_rows_per_read(&self) -> usize {
+        let row = self.meta.cols * self.file_bands * self.ty.size();
+        (READ_BLOCK_BYTES / row).clamp(1, self.meta.rows)
+    }
+
+    /// BIP, direct: sequential reads of whole rows, the requested samples decoded out of
+    /// each pixel.
+    fn read_bip_direct(&mut self, fbs: &[usize]) -> Result<Vec<Vec<f32>>> {
+        let (rows, cols, nb) = (self.meta.rows, self.meta.cols, self.file_bands);
+        let group = self.bip_rows_per_read();
+        let row_bytes = cols * nb * self.ty.size();
+        let scales: Vec<Option<(f64, f64)>> = fbs.iter().map(|&fb| self.scale_of(fb)).collect();
+        let mut out: Vec<Vec<f32>> = fbs
+            .iter()
+            .map(|_| Vec::with_capacity(rows * cols))
+            .collect();
+        let mut buf = vec![0u8; group * row_bytes];
+        let mut r0 = 0;
+        while r0 < rows {
+            let g = group.min(rows - r0);
+            let bytes = &mut buf[..g * row_bytes];
+            let offset = self.header_offset + (r0 * row_bytes) as u64;
+            read_at(&mut self.file, &self.data_path, offset, bytes)?;
+            for ((fb, scale), values) in fbs.iter().zip(&scales).zip(out.iter_mut()) {
+                decode_strided(
+                    bytes,
+                    self.ty,
+                    self.big_endian,
+                    *scale,
+                    *fb,
+                    nb,
+                    g * cols,
+                    values,
+                );
+            }
+            r0 += g;
+        }
+        Ok(out)
+    }
+
+    /// BIP → band order, once: reads the frame's rows sequentially, a block at a time, and
+    /// writes each stored band's part of the block to the scratch file (scaled as the
+    /// planes are). Memory: one read block and its decoded copy.
+    fn transpose_bip(&mut self) -> Result<BandSpill> {
+        let (rows, cols, nb) = (self.meta.rows, self.meta.cols, self.file_bands);
+        let mut spill = BandSpill::create(&self.data_path, nb, rows, cols)?;
+        let group = self.bip_rows_per_read();
+        let row_bytes = cols * nb * self.ty.size();
+        let mut buf = vec![0u8; group * row_bytes];
+        let mut values = Vec::with_capacity(group * cols);
+        let mut r0 = 0;
+        while r0 < rows {
+            let g = group.min(rows - r0);
+            let bytes = &mut buf[..g * row_bytes];
+            let offset = self.header_offset + (r0 * row_bytes) as u64;
+            read_at(&mut self.file, &self.data_path, offset, bytes)?;
+            for fb in 0..nb {
+                values.clear();
+                let scale = self.scale_of(fb);
+                decode_strided(
+                    bytes,
+                    self.ty,
+                    self.big_endian,
+                    scale,
+                    fb,
+                    nb,
+                    g * cols,
+                    &mut values,
+                );
+                spill.write(&self.data_path, fb, r0, 0, &values)?;
+            }
+            r0 += g;
+        }
+        Ok(spill)
+    }
+
+    /// Output band `band` from its decoded values: `data ignore value` samples to 0
+    /// (counted), then the radiance check.
+    fn finish_plane(&mut self, band: usize, mut values: Vec<f32>) -> Result<Array2<f32>> {
         if let Some(ignore) = self.ignore {
             // The marker after the same scaling as the data, so the comparison is exact.
-            let (g, o) = scale.unwrap_or((1.0, 0.0));
-            let marker = if scale.is_some() {
-                (g * ignore + o) as f32
-            } else {
-                ignore as f32
+            let marker = match self.scale_of(self.band_map[band]) {
+                Some((g, o)) => (g * ignore + o) as f32,
+                None => ignore as f32,
             };
             let mut n = 0;
             for v in values.iter_mut().filter(|v| **v == marker) {
@@ -840,7 +1015,7 @@ impl CubeReader for EnviReader {
             }
             self.masked[band] = Some(n);
         }
-        let plane = Array2::from_shape_vec((rows, cols), values)
+        let plane = Array2::from_shape_vec((self.meta.rows, self.meta.cols), values)
             .map_err(|e| Error::format(&self.data_path, e.to_string()))?;
         check_radiance_plane(
             &self.data_path.display().to_string(),
@@ -849,6 +1024,44 @@ impl CubeReader for EnviReader {
             plane.view(),
         )?;
         Ok(plane)
+    }
+}
+
+impl CubeReader for EnviReader {
+    fn meta(&self) -> &CubeMeta {
+        &self.meta
+    }
+
+    fn read_band(&mut self, frame: usize, band: usize) -> Result<Array2<f32>> {
+        let mut planes = self.read_bands(frame, &[band])?;
+        planes.pop().ok_or_else(|| {
+            Error::OutOfRange(format!(
+                "{}: band {band} was requested but not read",
+                self.data_path.display()
+            ))
+        })
+    }
+
+    /// Reads the requested bands with I/O proportional to what they occupy (see
+    /// [`EnviReader`]): BSQ one sequential read per band, BIL one read per image row
+    /// covering the rows of the requested bands, BIP through the band-order scratch file
+    /// (or whole-row reads for small frames). Every value is checked as in `read_band`.
+    fn read_bands(&mut self, frame: usize, bands: &[usize]) -> Result<Vec<Array2<f32>>> {
+        self.check_request(frame, bands)?;
+        let file_bands: Vec<usize> = bands.iter().map(|&b| self.band_map[b]).collect();
+        let raw = match self.interleave {
+            Interleave::Bsq => file_bands
+                .iter()
+                .map(|&fb| self.read_bsq(fb))
+                .collect::<Result<Vec<_>>>()?,
+            Interleave::Bil => self.read_bil(&file_bands)?,
+            Interleave::Bip => self.read_bip(&file_bands)?,
+        };
+        bands
+            .iter()
+            .zip(raw)
+            .map(|(&b, values)| self.finish_plane(b, values))
+            .collect()
     }
 
     fn warnings(&self) -> Vec<String> {

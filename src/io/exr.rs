@@ -53,17 +53,26 @@
 //! (`[horizontal, vertical]` degrees or the horizontal alone). A density per frequency unit is converted with
 //! `L_λ = L_ν · |dν/dλ| = L_ν · c / λ²`.
 //!
-//! The whole image is read at [`ExrReader::open`] (OpenEXR interleaves all channels of a
-//! scan-line block, so one band cannot be read alone); only the spectral planes are kept,
-//! as `f32`.
+//! # Memory
+//!
+//! OpenEXR stores all channels of a scan-line block (1–32 lines, by compression) or tile
+//! together, so one band cannot be read without decoding every block of the image.
+//! [`ExrReader::open`] therefore decodes the file once, block by block, and writes the
+//! spectral channels (as f32) into a band-order scratch file in the temporary directory
+//! (unlinked at creation; see `spill`); each band read is then one sequential read. The
+//! peak memory of reading is one compressed chunk + one decompressed block + one
+//! channel's share of it (for 1024 columns × 256 f32 channels with ZIP, 16 lines: 16 MiB
+//! per block), plus the offset tables (8 bytes per block) and the band planes the
+//! caller asks for. It does not grow with the number of bands beyond the block size
+//! (bands × columns × lines per block), and no whole-image buffer is ever allocated.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use exr::meta::attribute::AttributeValue;
 use exr::prelude::{
-    f16, AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes,
-    ReadChannels, ReadLayers, SmallVec, Text, WritableImage,
+    f16, AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, SmallVec,
+    Text, WritableImage,
 };
 use ndarray::{Array2, Axis};
 
@@ -72,6 +81,7 @@ use crate::error::{Error, Result};
 use crate::scene::{check_radiance_plane, Cube, CubeMeta, RadianceUnits};
 
 use super::metadata::{resolve_geometry, resolve_units, ReadOptions};
+use super::spill::BandSpill;
 
 /// Common attributes stating the radiance units (strings, any spelling of
 /// [`crate::scene::units`]), in precedence order.
@@ -338,59 +348,177 @@ struct Found {
     name: String,
     unit: SpectralUnit,
     unit_text: String,
-    /// Row-major `rows × cols` values as stored.
-    plane: Vec<f32>,
+    /// Index of the channel in the part's (name-sorted) channel list.
+    channel: usize,
 }
 
 /// Reads a spectral OpenEXR cube (one frame); see the [module documentation](self).
 pub struct ExrReader {
     path: PathBuf,
     meta: CubeMeta,
-    /// Spectral planes in band order, row-major `rows × cols`, as stored in the file.
-    planes: Vec<Vec<f32>>,
+    /// The spectral planes in band order, as stored in the file (f16 widened to f32),
+    /// decoded once at opening into a band-order scratch file.
+    spill: BandSpill,
     /// Per band: factor turning stored values into the cube's units.
     scale: Vec<f64>,
     units_source: String,
     warnings: Vec<String>,
 }
 
-/// Reads the headers only and checks, before any pixel is decoded, that every part's data
-/// window × channels (as f32, the decoder's flat samples, plus this reader's band planes:
-/// 8 bytes per sample) fits the memory budget ([`crate::limits`]); rewinds `file`.
-pub fn check_exr_size(path: &Path, file: &mut std::io::BufReader<std::fs::File>) -> Result<()> {
-    use std::io::{Seek, SeekFrom};
-    let meta = exr::meta::MetaData::read_from_buffered(&mut *file, false).map_err(|e| match e {
+/// Maps an OpenEXR decoder error to eoir's, naming the file.
+fn exr_error(path: &Path, e: exr::error::Error) -> Error {
+    match e {
         exr::error::Error::Io(io) => Error::io(path, io),
         other => Error::format(path, format!("not a readable OpenEXR file: {other}")),
-    })?;
-    let mut total: u64 = 0;
-    for h in meta.headers.iter() {
-        let dims = [
-            ("columns", h.layer_size.0 as u64),
-            ("rows", h.layer_size.1 as u64),
-            ("channels", h.channels.list.len() as u64),
-        ];
-        let n = crate::limits::checked_count(&format!("reading {}", path.display()), &dims)?;
-        total = n
-            .checked_mul(8)
-            .and_then(|b| b.checked_add(total))
-            .ok_or_else(|| Error::TooLarge {
-                what: "the OpenEXR image".into(),
-                needed: "more than 2^64 bytes".into(),
-                limit: crate::limits::max_memory_bytes(),
-            })?;
+    }
+}
+
+/// Checks, from the headers alone and before anything of their size is allocated, that
+/// the file can hold what they claim and that decoding fits the memory budget
+/// ([`crate::limits`]): the offset tables (8 bytes per chunk, stored in the file, so
+/// they cannot exceed it) and the largest block, counted three times (the compressed
+/// chunk, the decompressed block and one channel's share of it on its way to the scratch
+/// file, rounded up).
+fn check_exr_size(path: &Path, headers: &[exr::meta::header::Header], file_len: u64) -> Result<()> {
+    let what = format!("reading {}", path.display());
+    let mut chunks: u64 = 0;
+    let mut block: u64 = 0;
+    for h in headers {
+        chunks = chunks.saturating_add(h.chunk_count as u64);
+        let pixels = match h.blocks {
+            exr::meta::BlockDescription::Tiles(t) => crate::limits::checked_count(
+                &what,
+                &[
+                    ("tile columns", t.tile_size.x() as u64),
+                    ("tile rows", t.tile_size.y() as u64),
+                ],
+            )?,
+            exr::meta::BlockDescription::ScanLines => crate::limits::checked_count(
+                &what,
+                &[
+                    (
+                        "scan lines per block",
+                        h.compression.scan_lines_per_block() as u64,
+                    ),
+                    ("columns", h.layer_size.x() as u64),
+                ],
+            )?,
+        };
+        let bytes = crate::limits::checked_count(
+            &what,
+            &[
+                ("block pixels", pixels),
+                ("bytes per pixel", h.channels.bytes_per_pixel as u64),
+            ],
+        )?;
+        block = block.max(bytes);
+    }
+    if chunks.saturating_mul(8) > file_len {
+        return Err(Error::format(
+            path,
+            format!(
+                "the headers describe {chunks} pixel blocks, whose offset table alone needs {} bytes, but the file has {file_len} bytes (truncated, or a corrupt data window)",
+                chunks.saturating_mul(8)
+            ),
+        ));
     }
     crate::limits::check_bytes(
-        &format!("reading {}", path.display()),
-        &format!(
-            "{} part(s): data windows × channels × 8 bytes",
-            meta.headers.len()
-        ),
-        total,
+        &what,
+        &format!("3 × the largest block ({block} bytes) + offset tables ({chunks} × 8 bytes)"),
+        block
+            .saturating_mul(3)
+            .saturating_add(chunks.saturating_mul(8)),
     )?;
-    file.seek(SeekFrom::Start(0))
-        .map_err(|e| Error::io(path, e))?;
     Ok(())
+}
+
+/// Decodes the spectral channels `channels` (indices in part `layer`'s channel list, in
+/// band order) of the full-resolution level into a band-order scratch file, one block at
+/// a time: each decompressed block is split into its channels' line runs, converted to
+/// f32 and written at their place. Peak memory: one compressed chunk, one decompressed
+/// block and one channel's share of it.
+fn decode_to_spill(
+    path: &Path,
+    blocks: exr::block::reader::Reader<std::io::BufReader<std::fs::File>>,
+    layer: usize,
+    channels: &[usize],
+    rows: usize,
+    cols: usize,
+) -> Result<BandSpill> {
+    use exr::block::reader::ChunksReader;
+    let mut spill = BandSpill::create(path, channels.len(), rows, cols)?;
+    let header = blocks.headers()[layer].clone();
+    let list = &header.channels.list;
+    let sizes: Vec<usize> = list
+        .iter()
+        .map(|c| c.sample_type.bytes_per_sample())
+        .collect();
+    let half: Vec<bool> = list
+        .iter()
+        .map(|c| c.sample_type == exr::meta::attribute::SampleType::F16)
+        .collect();
+    let bytes_per_pixel: usize = sizes.iter().sum();
+    let mut failure: Option<Error> = None;
+    let reader = blocks
+        .filter_chunks(false, |_, _, b| {
+            b.layer == layer && b.level == exr::math::Vec2(0, 0)
+        })
+        .map_err(|e| exr_error(path, e))?;
+    let mut values: Vec<f32> = Vec::new();
+    let result = reader.decompress_sequential(false, |_, block| {
+        let exr::math::Vec2(x0, y0) = block.index.pixel_position;
+        let exr::math::Vec2(w, h) = block.index.pixel_size;
+        let inside = x0.checked_add(w).is_some_and(|e| e <= cols)
+            && y0.checked_add(h).is_some_and(|e| e <= rows);
+        if !inside || block.data.len() != w * h * bytes_per_pixel {
+            failure = Some(Error::format(
+                path,
+                format!(
+                    "a pixel block at ({x0}, {y0}) of {w} x {h} pixels and {} bytes does not fit the {cols} x {rows} data window with {bytes_per_pixel} bytes per pixel",
+                    block.data.len()
+                ),
+            ));
+            return Err(exr::error::Error::Aborted);
+        }
+        // Within one scan line of the block: every channel's w samples, in list order.
+        for (band, &c) in channels.iter().enumerate() {
+            let before: usize = sizes[..c].iter().sum::<usize>() * w;
+            let n = sizes[c] * w;
+            values.clear();
+            for y in 0..h {
+                let at = y * w * bytes_per_pixel + before;
+                let line = &block.data[at..at + n];
+                if half[c] {
+                    values.extend(
+                        line.chunks_exact(2)
+                            .map(|b| f16::from_ne_bytes([b[0], b[1]]).to_f32()),
+                    );
+                } else {
+                    values.extend(
+                        line.chunks_exact(4)
+                            .map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]])),
+                    );
+                }
+            }
+            let written = if w == cols {
+                spill.write(path, band, y0, 0, &values)
+            } else {
+                (0..h).try_for_each(|y| {
+                    spill.write(path, band, y0 + y, x0, &values[y * w..(y + 1) * w])
+                })
+            };
+            if let Err(e) = written {
+                failure = Some(e);
+                return Err(exr::error::Error::Aborted);
+            }
+        }
+        Ok(())
+    });
+    match (failure, result) {
+        (Some(e), _) => Err(e),
+        (None, Err(e)) => Err(exr_error(path, e)),
+        (None, Ok(())) => Ok(spill),
+    }
 }
 
 impl ExrReader {
@@ -403,33 +531,24 @@ impl ExrReader {
     /// Like [`open`](Self::open), with reading options (a radiance-unit override).
     pub fn open_with(path: &Path, options: &ReadOptions) -> Result<Self> {
         let file = crate::io::input::open_regular(path)?;
-        let mut file = std::io::BufReader::new(file);
-        check_exr_size(path, &mut file)?;
-        let image = exr::prelude::read()
-            .no_deep_data()
-            .largest_resolution_level()
-            .all_channels()
-            .all_layers()
-            .all_attributes()
-            .from_buffered(file)
-            .map_err(|e| match e {
-                exr::error::Error::Io(io) => Error::io(path, io),
-                other => Error::format(path, format!("not a readable OpenEXR file: {other}")),
-            })?;
+        let file_len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+        let blocks = exr::block::read(std::io::BufReader::new(file), false)
+            .map_err(|e| exr_error(path, e))?;
+        check_exr_size(path, blocks.headers(), file_len)?;
         let mut warnings = Vec::new();
 
-        let has_s0 = |layer: &Layer<AnyChannels<FlatSamples>>| {
-            layer.channel_data.list.iter().any(|c| {
+        let has_s0 = |header: &exr::meta::header::Header| {
+            header.channels.list.iter().any(|c| {
                 parse_channel_name(&c.name.to_string())
                     .is_some_and(|n| n.kind == ChannelKind::Emissive(0))
             })
         };
-        let n_layers = image.layer_data.len();
-        let Some(layer_index) = image.layer_data.iter().position(has_s0) else {
-            let names: Vec<String> = image
-                .layer_data
+        let n_layers = blocks.headers().len();
+        let Some(layer_index) = blocks.headers().iter().position(has_s0) else {
+            let names: Vec<String> = blocks
+                .headers()
                 .iter()
-                .flat_map(|l| l.channel_data.list.iter().map(|c| c.name.to_string()))
+                .flat_map(|h| h.channels.list.iter().map(|c| c.name.to_string()))
                 .collect();
             return Err(Error::format(
                 path,
@@ -444,16 +563,21 @@ impl ExrReader {
                 "the file has {n_layers} parts; read part {layer_index}, the first with spectral channels, and ignored the others"
             ));
         }
-        let mut layers = image.layer_data;
-        let layer = layers.swap_remove(layer_index);
-        let rows = layer.size.y();
-        let cols = layer.size.x();
-        let attrs = layer.attributes.other;
+        let header = blocks.headers()[layer_index].clone();
+        if header.deep {
+            return Err(Error::format(
+                path,
+                format!("part {layer_index} holds deep data, which eoir does not read; store the spectral channels as flat (non-deep) samples"),
+            ));
+        }
+        let rows = header.layer_size.y();
+        let cols = header.layer_size.x();
+        let attrs = header.own_attributes.other.clone();
 
         // Channels: keep S0, list the rest.
         let mut found = Vec::new();
         let mut ignored = Vec::new();
-        for channel in layer.channel_data.list {
+        for (index, channel) in header.channels.list.iter().enumerate() {
             let name = channel.name.to_string();
             match parse_channel_name(&name) {
                 Some(n) if n.kind == ChannelKind::Emissive(0) => {
@@ -467,22 +591,18 @@ impl ExrReader {
                             ),
                         ));
                     }
-                    let plane = match channel.sample_data {
-                        FlatSamples::F32(v) => v,
-                        FlatSamples::F16(v) => v.into_iter().map(f16::to_f32).collect(),
-                        FlatSamples::U32(_) => {
-                            return Err(Error::format(
-                                path,
-                                format!("channel `{name}` holds u32 integers; spectral radiance must be f16 or f32"),
-                            ))
-                        }
-                    };
+                    if channel.sample_type == exr::meta::attribute::SampleType::U32 {
+                        return Err(Error::format(
+                            path,
+                            format!("channel `{name}` holds u32 integers; spectral radiance must be f16 or f32"),
+                        ));
+                    }
                     found.push(Found {
                         wavelength_um: n.unit.wavelength_um(n.value),
                         name,
                         unit: n.unit,
                         unit_text: n.unit_text,
-                        plane,
+                        channel: index,
                     });
                 }
                 _ => ignored.push(name),
@@ -724,11 +844,12 @@ impl ExrReader {
         };
         meta.validate(&path.display().to_string())?;
 
-        let planes = found.into_iter().map(|f| f.plane).collect();
+        let channels: Vec<usize> = found.iter().map(|f| f.channel).collect();
+        let spill = decode_to_spill(path, blocks, layer_index, &channels, rows, cols)?;
         Ok(ExrReader {
             path: path.to_path_buf(),
             meta,
-            planes,
+            spill,
             scale,
             units_source,
             warnings,
@@ -833,14 +954,12 @@ impl super::CubeReader for ExrReader {
             ));
         }
         let scale = self.scale[band];
-        let values: Vec<f32> = if scale == 1.0 {
-            self.planes[band].clone()
-        } else {
-            self.planes[band]
-                .iter()
-                .map(|&v| (f64::from(v) * scale) as f32)
-                .collect()
-        };
+        let mut values = self.spill.read(&self.path, band)?;
+        if scale != 1.0 {
+            values
+                .iter_mut()
+                .for_each(|v| *v = (f64::from(*v) * scale) as f32);
+        }
         let plane =
             Array2::from_shape_vec((self.meta.rows, self.meta.cols), values).map_err(|_| {
                 Error::format(

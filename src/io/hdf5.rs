@@ -11,16 +11,30 @@
 //!
 //! | attribute | type | required | meaning |
 //! |---|---|---|---|
-//! | `wavelength_um` | f64 array | yes | band centres, µm, strictly increasing |
-//! | `units` | string | yes | [`RadianceUnits::as_str`] (`"W m-2 sr-1 um-1"` or `"W m-2 sr-1"`) |
+//! | `wavelength_um` | f64 array | yes | band centres, µm, strictly increasing or strictly decreasing |
+//! | `units` (or `radiance_units`) | string | yes, unless `--radiance-units` is given | radiance units in any spelling of [`crate::scene::units`]: `W m-2 sr-1 um-1`, `W/(m2 sr nm)`, `uW cm-2 sr-1 nm-1`, `W m-2 sr-1` (band-integrated)… |
 //! | `fwhm_um` | f64 array | no | band full widths at half maximum, µm |
 //! | `fov_deg` | f64 `[h, v]` | no | full field of view, degrees |
-//! | `range_m` | f64 | no | range to the scene, m (only with `fov_deg`) |
+//! | `ifov_rad` | f64 `[x, y]` | no | angular pixel spacing, rad (instead of `fov_deg`) |
+//! | `fov` | f64 `[h, v]` or `h` | no | full field of view, degrees, as other tools name it (used when neither `fov_deg` nor `ifov_rad` is present) |
+//! | `range_m` | f64 | no | range to the scene, m (only with a field of view) |
 //! | `frame_time_s` | f64 | no (`/frames` only) | time between frames, s |
 //!
-//! Datasets are stored contiguously, so [`read_band`](super::CubeReader::read_band) reads one band with a
-//! hyperslab selection: memory does not grow with the number of bands. Other numeric
-//! storage types (f64, integers) are converted to f32 by the HDF5 library on reading.
+//! The metadata goes through the path every reader shares ([`super::metadata`]): the unit
+//! statements are parsed by the one unit parser and values are converted to eoir's units
+//! as they are read (`--radiance-units` overrides the file); the field of view follows
+//! the documented precedence (`--fov-deg` always wins, then `fov_deg` / `ifov_rad`, then
+//! `fov`); a wavelength list in decreasing order is handed out in increasing order. Any
+//! other attribute is listed in the warnings and otherwise ignored. Unlike the ENVI and
+//! NPY readers, which assume spectral radiance per µm with a warning, the HDF5 reader
+//! requires a unit statement (or the override): the layout is eoir's own, and a file
+//! without one was not written to it.
+//!
+//! [`read_band`](super::CubeReader::read_band) reads one band with a hyperslab selection,
+//! and [`read_bands`](super::CubeReader::read_bands) reads each run of adjacent stored
+//! bands with one hyperslab (one pass over a chunked, compressed dataset instead of one
+//! per band): memory does not grow with the number of bands. Other numeric storage types
+//! (f64, integers) are converted to f32 by the HDF5 library on reading.
 //!
 //! # Bundles
 //!
@@ -33,15 +47,30 @@ use std::path::{Path, PathBuf};
 
 use hdf5_metno::types::{FixedAscii, FixedUnicode, TypeDescriptor, VarLenAscii, VarLenUnicode};
 use hdf5_metno::{Dataset, File, Location};
-use ndarray::{s, Array2, ArrayView2, ArrayView4, Axis};
+use ndarray::{s, Array2, Array3, ArrayView2, ArrayView4, Axis};
 
 use crate::error::{Error, Result};
-use crate::scene::{check_radiance_plane, Cube, CubeMeta, Geometry, RadianceUnits};
+use crate::scene::{check_radiance_plane, Cube, CubeMeta};
+
+use super::metadata::{order_bands, resolve_geometry, resolve_units, BandOrder, ReadOptions};
 
 /// Name of the single-cube dataset.
 pub const RADIANCE: &str = "radiance";
 /// Name of the sequence dataset.
 pub const FRAMES: &str = "frames";
+
+/// Attributes of the cube layout (anything else is a warning).
+const KNOWN_ATTRIBUTES: [&str; 9] = [
+    "wavelength_um",
+    "units",
+    "radiance_units",
+    "fwhm_um",
+    "fov_deg",
+    "ifov_rad",
+    "fov",
+    "range_m",
+    "frame_time_s",
+];
 
 /// Longest fixed-length string attribute read (longer ones are truncated by HDF5).
 const MAX_FIXED_STRING: usize = 4096;
@@ -58,7 +87,7 @@ impl<T> Context<T> for hdf5_metno::Result<T> {
 }
 
 /// Reads cubes and sequences in the layout of the [module documentation](self), one band
-/// at a time.
+/// (or one run of adjacent bands) at a time.
 pub struct Hdf5Reader {
     path: PathBuf,
     meta: CubeMeta,
@@ -66,6 +95,11 @@ pub struct Hdf5Reader {
     sequence: bool,
     frames: usize,
     frame_time_s: Option<f64>,
+    /// Output band index → stored band index.
+    band_map: Vec<usize>,
+    /// Factor from the stated units to eoir's.
+    to_eoir: f64,
+    units_source: String,
     warnings: Vec<String>,
 }
 
@@ -73,8 +107,12 @@ impl Hdf5Reader {
     /// Opens a file and reads its metadata (no pixel data): `/frames` if present, else
     /// `/radiance`.
     pub fn open(path: &Path) -> Result<Self> {
-        // Regular files only, checked without blocking: the HDF5 library's own open would
-        // block forever on a FIFO.
+        Self::open_with(path, &ReadOptions::default())
+    }
+
+    /// Like [`open`](Self::open), with reading options (a radiance-unit override).
+    pub fn open_with(path: &Path, options: &ReadOptions) -> Result<Self> {
+        // Refuses FIFOs, devices and directories without blocking, before libhdf5 opens it.
         drop(crate::io::input::open_regular(path)?);
         let file = File::open(path).ctx(path, "not a readable HDF5 file")?;
         let mut warnings = Vec::new();
@@ -87,7 +125,8 @@ impl Hdf5Reader {
         }
         if sequence && file.link_exists(RADIANCE) {
             warnings.push(format!(
-                "the file has both `/{FRAMES}` and `/{RADIANCE}`; read the sequence `/{FRAMES}` and ignored `/{RADIANCE}`"
+                "{}: the file has both `/{FRAMES}` and `/{RADIANCE}`; read the sequence `/{FRAMES}` and ignored `/{RADIANCE}`",
+                path.display()
             ));
         }
         let name = if sequence { FRAMES } else { RADIANCE };
@@ -109,6 +148,12 @@ impl Hdf5Reader {
                 ),
             ));
         }
+        if shape.contains(&0) {
+            return Err(Error::format(
+                path,
+                format!("dataset `/{name}` has shape {shape:?}, with a zero-length dimension"),
+            ));
+        }
         let dtype = dataset
             .dtype()
             .and_then(|t| t.to_descriptor())
@@ -128,42 +173,28 @@ impl Hdf5Reader {
             shape[expected_ndim - 2],
             shape[expected_ndim - 1],
         );
-        // One band plane (f32) and its read buffer, before any plane is read.
         crate::limits::check_alloc(
-            &format!("reading {}", path.display()),
+            &format!("reading one band of {}", path.display()),
             &[("rows", rows as u64), ("cols", cols as u64)],
-            8,
+            4,
         )?;
 
         let loc: &Location = &dataset;
+        for attr in loc.attr_names().ctx(path, "cannot list attributes")? {
+            if !KNOWN_ATTRIBUTES.contains(&attr.as_str()) {
+                warnings.push(format!(
+                    "{}: attribute `{}` of `/{name}` is not an eoir key and was ignored",
+                    path.display(),
+                    crate::error::escape_token(&attr)
+                ));
+            }
+        }
         let wavelength_um = read_f64s(path, name, loc, "wavelength_um")?.ok_or_else(|| {
             missing(
                 path,
                 name,
                 "wavelength_um",
                 "band centre wavelengths, µm, one per band",
-            )
-        })?;
-        let units_text = read_string(path, name, loc, "units")?.ok_or_else(|| {
-            missing(
-                path,
-                name,
-                "units",
-                &format!(
-                    "`{}` or `{}`",
-                    RadianceUnits::SpectralPerUm.as_str(),
-                    RadianceUnits::BandIntegrated.as_str()
-                ),
-            )
-        })?;
-        let units = RadianceUnits::parse(&units_text).ok_or_else(|| {
-            Error::format(
-                path,
-                format!(
-                    "attribute `units` of `/{name}` = `{units_text}`: expected `{}` or `{}`",
-                    RadianceUnits::SpectralPerUm.as_str(),
-                    RadianceUnits::BandIntegrated.as_str()
-                ),
             )
         })?;
         if wavelength_um.len() != bands {
@@ -176,60 +207,110 @@ impl Hdf5Reader {
             ));
         }
         let fwhm_um = read_f64s(path, name, loc, "fwhm_um")?;
-        let fov = read_f64s(path, name, loc, "fov_deg")?;
-        let range_m = read_scalar(path, name, loc, "range_m")?;
-        let frame_time_s = if sequence {
-            read_scalar(path, name, loc, "frame_time_s")?
-        } else {
-            None
-        };
-        if let Some(t) = frame_time_s {
-            if !(t.is_finite() && t > 0.0) {
-                return Err(Error::format(
-                    path,
-                    format!("attribute `frame_time_s` of `/{name}` = {t}: expected a time > 0 s"),
-                ));
-            }
-        }
-        let geometry = match fov {
-            Some(f) if f.len() == 2 => Some(Geometry {
-                fov_x_deg: f[0],
-                fov_y_deg: f[1],
-                range_m,
-            }),
-            Some(f) => {
+        if let Some(f) = &fwhm_um {
+            if f.len() != bands {
                 return Err(Error::format(
                     path,
                     format!(
-                        "attribute `fov_deg` of `/{name}` has {} values; expected 2 [horizontal, vertical] degrees",
+                        "attribute `fwhm_um` of `/{name}` has {} values but the dataset has {bands} bands",
                         f.len()
                     ),
+                ));
+            }
+        }
+
+        let mut statements = Vec::new();
+        for key in ["units", "radiance_units"] {
+            if let Some(u) = read_string(path, name, loc, key)? {
+                statements.push((format!("attribute `{key}`"), u));
+            }
+        }
+        let resolved =
+            resolve_units(path, &statements, options, &mut warnings)?.ok_or_else(|| {
+                missing(
+                    path,
+                    name,
+                    "units",
+                    &format!(
+                        "the radiance units, e.g. {}; or pass --radiance-units",
+                        crate::scene::units::EXAMPLES
+                    ),
+                )
+            })?;
+
+        let frame_time_s = read_scalar(path, name, loc, "frame_time_s")?;
+        match frame_time_s {
+            Some(t) if !sequence => warnings.push(format!(
+                "{}: attribute `frame_time_s` = {t} of `/{name}` ignored: a single cube has no frame time",
+                path.display()
+            )),
+            Some(t) if !(t.is_finite() && t > 0.0) => {
+                return Err(Error::format(
+                    path,
+                    format!("attribute `frame_time_s` of `/{name}` = {t}: expected a time > 0 s"),
                 ))
             }
-            None => {
-                if range_m.is_some() {
-                    warnings.push(format!(
-                        "attribute `range_m` of `/{name}` ignored: without `fov_deg` the file has no geometry"
-                    ));
-                }
-                None
+            _ => {}
+        }
+        let frame_time_s = frame_time_s.filter(|_| sequence);
+
+        let pair = |key: &str| -> Result<Option<[f64; 2]>> {
+            match read_f64s(path, name, loc, key)? {
+                None => Ok(None),
+                Some(v) if v.len() == 2 => Ok(Some([v[0], v[1]])),
+                Some(v) => Err(Error::format(
+                    path,
+                    format!(
+                        "attribute `{key}` of `/{name}` has {} values; expected 2 [horizontal, vertical]",
+                        v.len()
+                    ),
+                )),
             }
         };
+        let own_fov = pair("fov_deg")?;
+        let own_ifov = pair("ifov_rad")?;
+        let mut common = Vec::new();
+        if let Some(v) = read_f64s(path, name, loc, "fov")? {
+            common.push(("fov".to_string(), v));
+        }
+        let range_m = read_scalar(path, name, loc, "range_m")?;
+        let geometry = resolve_geometry(
+            path,
+            [
+                "attribute `fov_deg`",
+                "attribute `ifov_rad`",
+                "attribute `range_m`",
+            ],
+            own_fov,
+            own_ifov,
+            &common,
+            range_m,
+            rows,
+            cols,
+            &mut warnings,
+        )?;
+        let BandOrder {
+            wavelength_um,
+            fwhm_um,
+            band_map,
+            reversed,
+        } = order_bands(path, wavelength_um, fwhm_um)?;
+        if reversed {
+            warnings.push(format!(
+                "{}: wavelengths are listed in decreasing order; bands are handed out in increasing wavelength (band 0 = stored band {})",
+                path.display(),
+                bands - 1
+            ));
+        }
         let meta = CubeMeta {
             wavelength_um,
             fwhm_um,
-            units,
+            units: resolved.scale.units,
             geometry,
             rows,
             cols,
         };
         meta.validate(&path.display().to_string())?;
-        if frames == 0 {
-            return Err(Error::format(
-                path,
-                format!("dataset `/{FRAMES}` has no frames"),
-            ));
-        }
         Ok(Hdf5Reader {
             path: path.to_path_buf(),
             meta,
@@ -237,8 +318,76 @@ impl Hdf5Reader {
             sequence,
             frames,
             frame_time_s,
+            band_map,
+            to_eoir: resolved.scale.to_eoir,
+            units_source: resolved.source,
             warnings,
         })
+    }
+
+    /// Checks a frame and band index against the file.
+    fn check_index(&self, frame: usize, band: usize) -> Result<()> {
+        if frame >= self.frames {
+            return Err(Error::OutOfRange(format!(
+                "{}: frame {frame} requested but the file has frames 0..{}",
+                self.path.display(),
+                self.frames
+            )));
+        }
+        let bands = self.meta.bands();
+        if band >= bands {
+            return Err(Error::OutOfRange(format!(
+                "{}: band {band} requested but the cube has bands 0..{bands}",
+                self.path.display()
+            )));
+        }
+        Ok(())
+    }
+
+    /// Reads stored bands `first..first + n` of `frame` with one hyperslab selection.
+    fn read_stored(&self, frame: usize, first: usize, n: usize) -> Result<Array3<f32>> {
+        let what = || {
+            if n == 1 {
+                format!("cannot read frame {frame}, band {first}")
+            } else {
+                format!(
+                    "cannot read frame {frame}, stored bands {first}..{}",
+                    first + n
+                )
+            }
+        };
+        crate::limits::check_alloc(
+            &format!("reading {n} bands of {}", self.path.display()),
+            &[
+                ("bands", n as u64),
+                ("rows", self.meta.rows as u64),
+                ("cols", self.meta.cols as u64),
+            ],
+            4,
+        )?;
+        if self.sequence {
+            self.dataset
+                .read_slice::<f32, _, ndarray::Ix3>(s![frame, first..first + n, .., ..])
+        } else {
+            self.dataset
+                .read_slice::<f32, _, ndarray::Ix3>(s![first..first + n, .., ..])
+        }
+        .ctx(&self.path, what())
+    }
+
+    /// Scales a stored plane to eoir's units and checks it (output band `band`).
+    fn finish_plane(&self, band: usize, mut plane: Array2<f32>) -> Result<Array2<f32>> {
+        if self.to_eoir != 1.0 {
+            let k = self.to_eoir;
+            plane.mapv_inplace(|v| (v as f64 * k) as f32);
+        }
+        check_radiance_plane(
+            &self.path.display().to_string(),
+            band,
+            self.meta.wavelength_um[band],
+            plane.view(),
+        )?;
+        Ok(plane)
     }
 }
 
@@ -256,45 +405,55 @@ impl super::CubeReader for Hdf5Reader {
     }
 
     fn read_band(&mut self, frame: usize, band: usize) -> Result<Array2<f32>> {
-        if frame >= self.frames {
-            return Err(Error::param(
-                "frame",
-                frame,
-                format!(
-                    "an index below {} (frames in {})",
-                    self.frames,
-                    self.path.display()
-                ),
-            ));
+        self.check_index(frame, band)?;
+        let stored = self.read_stored(frame, self.band_map[band], 1)?;
+        let plane = stored.index_axis_move(Axis(0), 0);
+        self.finish_plane(band, plane)
+    }
+
+    /// Reads each run of requested bands that are adjacent in the file (in either order)
+    /// with one hyperslab, then hands the planes out in the order asked for.
+    fn read_bands(&mut self, frame: usize, bands: &[usize]) -> Result<Vec<Array2<f32>>> {
+        for &b in bands {
+            self.check_index(frame, b)?;
         }
-        let bands = self.meta.bands();
-        if band >= bands {
-            return Err(Error::param(
-                "band",
-                band,
-                format!("an index below {bands} (bands in {})", self.path.display()),
-            ));
+        let mut out = Vec::with_capacity(bands.len());
+        let mut i = 0;
+        while i < bands.len() {
+            // The longest run bands[i..j] whose stored indices step by +1 or −1.
+            let s0 = self.band_map[bands[i]];
+            let mut j = i + 1;
+            let step = bands
+                .get(j)
+                .map(|&b| self.band_map[b] as isize - s0 as isize)
+                .filter(|d| d.abs() == 1);
+            if let Some(d) = step {
+                while j < bands.len()
+                    && self.band_map[bands[j]] as isize == s0 as isize + d * (j - i) as isize
+                {
+                    j += 1;
+                }
+            }
+            let n = j - i;
+            let first = if step == Some(-1) { s0 + 1 - n } else { s0 };
+            let block = self.read_stored(frame, first, n)?;
+            for (k, &b) in bands[i..j].iter().enumerate() {
+                // Ascending runs start at `first`, descending ones end there.
+                let idx = if step == Some(-1) { n - 1 - k } else { k };
+                let plane = block.index_axis(Axis(0), idx).to_owned();
+                out.push(self.finish_plane(b, plane)?);
+            }
+            i = j;
         }
-        let plane: Array2<f32> = if self.sequence {
-            self.dataset.read_slice_2d(s![frame, band, .., ..])
-        } else {
-            self.dataset.read_slice_2d(s![band, .., ..])
-        }
-        .ctx(
-            &self.path,
-            format!("cannot read frame {frame}, band {band}"),
-        )?;
-        check_radiance_plane(
-            &self.path.display().to_string(),
-            band,
-            self.meta.wavelength_um[band],
-            plane.view(),
-        )?;
-        Ok(plane)
+        Ok(out)
     }
 
     fn warnings(&self) -> Vec<String> {
         self.warnings.clone()
+    }
+
+    fn units_source(&self) -> String {
+        self.units_source.clone()
     }
 }
 

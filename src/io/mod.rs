@@ -34,6 +34,7 @@ pub mod metadata;
 pub mod npy;
 pub mod output;
 pub mod raster;
+pub(crate) mod spill;
 
 pub use metadata::ReadOptions;
 
@@ -120,15 +121,7 @@ pub fn open_with(path: &Path, options: &ReadOptions) -> Result<Box<dyn CubeReade
         CubeFormat::Exr => Ok(Box::new(exr::ExrReader::open_with(path, options)?)),
         CubeFormat::Npy => Ok(Box::new(npy::NpyReader::open_with(path, options)?)),
         #[cfg(feature = "hdf5")]
-        CubeFormat::Hdf5 => {
-            if options.radiance_units.is_some() {
-                return Err(Error::format(
-                    path,
-                    "--radiance-units is not supported for HDF5 input; state the units in the file's `units` attribute",
-                ));
-            }
-            Ok(Box::new(hdf5::Hdf5Reader::open(path)?))
-        }
+        CubeFormat::Hdf5 => Ok(Box::new(hdf5::Hdf5Reader::open_with(path, options)?)),
         #[cfg(not(feature = "hdf5"))]
         CubeFormat::Hdf5 => Err(hdf5_missing(path)),
     }

@@ -45,7 +45,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 use crate::scene::{check_radiance_plane, Cube, CubeMeta};
 
-use super::binary::{check_size, decode_into, read_at, SampleType};
+use super::binary::{check_size, read_samples, SampleType};
 use super::metadata::{
     default_units, order_bands, resolve_geometry, resolve_units, BandOrder, ReadOptions,
 };
@@ -660,19 +660,22 @@ impl CubeReader for NpyReader {
             )));
         }
         let (rows, cols) = (self.meta.rows, self.meta.cols);
-        let plane_bytes = rows * cols * self.ty.size();
+        let plane_bytes = (rows * cols * self.ty.size()) as u64;
         let index = (frame * bands + self.band_map[band]) as u64;
-        let mut buf = vec![0u8; plane_bytes];
-        read_at(
-            &mut self.file,
-            &self.path,
-            self.data_start + index * plane_bytes as u64,
-            &mut buf,
-        )?;
+        // The plane is contiguous ([frame, band, row, col] in C order): one sequential
+        // read (in 4 MiB pieces for larger planes), decoded as it arrives.
         let mut values = Vec::with_capacity(rows * cols);
         let scale = (self.to_eoir != 1.0).then_some((self.to_eoir, 0.0));
-        decode_into(&buf, self.ty, self.big_endian, scale, &mut values);
-        drop(buf);
+        read_samples(
+            &mut self.file,
+            &self.path,
+            self.data_start + index * plane_bytes,
+            rows * cols,
+            self.ty,
+            self.big_endian,
+            scale,
+            &mut values,
+        )?;
         let plane = Array2::from_shape_vec((rows, cols), values)
             .map_err(|e| Error::format(&self.path, e.to_string()))?;
         check_radiance_plane(

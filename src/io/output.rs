@@ -20,6 +20,17 @@
 //!   and temporary file, and exits with status 128 + signal. The move into place holds
 //!   the same lock, so a signal during the move waits for it to finish: the directory
 //!   then holds either the complete old set or the complete new set.
+//!
+//!   The main thread keeps running while the handler cleans up, so a writer that had
+//!   registered its temporary file just before the signal may still create it (libhdf5's
+//!   `H5Fcreate`, which first initialises the library, makes that window milliseconds
+//!   wide). The clean-up therefore removes a staging directory until it is really gone
+//!   (a file created while `remove_dir_all` walked the directory made its final `rmdir`
+//!   fail), a staging directory is created under the lock, so it exists whenever it is
+//!   registered, and the handler never releases the lock, so no writer starts another
+//!   file. The process then ends with `_exit`: no `atexit` handler runs, in particular not
+//!   libhdf5's library shutdown, which would close and flush the HDF5 file the main thread
+//!   is still writing.
 //! - **`-`** names standard output where a single text stream makes sense (`eoir mtf
 //!   --csv -`); see [`is_stdout`].
 
@@ -58,15 +69,36 @@ pub fn unregister_cleanup(path: &Path) {
     }
 }
 
+/// Passes of [`remove_any`] over a directory that another thread may still be adding a
+/// file to (each writer adds at most one once the clean-up holds the lock).
+const REMOVE_PASSES: usize = 100;
+
+/// Removes a file, or a directory with everything in it. A directory is removed again
+/// while it still exists (up to [`REMOVE_PASSES`] times, 1 ms apart), because a file
+/// created in it while `remove_dir_all` walked it makes the final `rmdir` fail.
 fn remove_any(path: &Path) {
-    match std::fs::symlink_metadata(path) {
-        Ok(m) if m.is_dir() => {
-            let _ = std::fs::remove_dir_all(path);
+    for _ in 0..REMOVE_PASSES {
+        match std::fs::symlink_metadata(path) {
+            Ok(m) if m.is_dir() => {
+                if std::fs::remove_dir_all(path).is_ok() {
+                    return;
+                }
+            }
+            Ok(_) => {
+                let _ = std::fs::remove_file(path);
+                return;
+            }
+            Err(_) => return,
         }
-        Ok(_) => {
-            let _ = std::fs::remove_file(path);
-        }
-        Err(_) => {}
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+}
+
+/// What the signal handler does before exiting: removes every registered path, newest
+/// first, holding (and keeping) the lock `list` so that nothing new is registered.
+fn remove_registered(list: &[PathBuf]) {
+    for p in list.iter().rev() {
+        remove_any(p);
     }
 }
 
@@ -87,13 +119,13 @@ pub fn install_signal_handler() -> Result<()> {
                             // Holding the lock: a product set being moved into place
                             // finishes first, and nothing new is registered meanwhile.
                             let list = cleanup_list();
-                            for p in list.iter().rev() {
-                                remove_any(p);
-                            }
+                            remove_registered(&list);
                             eprintln!(
                                 "eoir: interrupted (signal {sig}); removed unfinished outputs"
                             );
-                            std::process::exit(128 + sig);
+                            // `_exit`, still holding the lock: no atexit handlers (libhdf5's
+                            // shutdown would touch the file the main thread is writing).
+                            signal_hook::low_level::exit(128 + sig);
                         }
                     });
                 if let Err(e) = spawned {
@@ -174,15 +206,23 @@ impl ProductSet {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let n = STAGING_SEQ.fetch_add(1, Ordering::Relaxed);
         let staging = dir.join(format!("{STAGING_PREFIX}{}-{n}", std::process::id()));
-        // Registered before it exists so a signal right after creation removes it.
-        register_cleanup(&staging);
+        // Registered and created under the lock: the signal handler sees it either not
+        // at all (and nothing exists) or registered and existing.
+        let created_staging = {
+            let mut list = cleanup_list();
+            let r = std::fs::create_dir(&staging);
+            if r.is_ok() {
+                list.push(staging.clone());
+            }
+            r
+        };
         let set = ProductSet {
             dir: dir.to_path_buf(),
             staging,
             created,
             committed: false,
         };
-        if let Err(e) = std::fs::create_dir(&set.staging) {
+        if let Err(e) = created_staging {
             return Err(Error::io(&set.staging, e));
         }
         Ok(set)
@@ -310,4 +350,40 @@ fn collect(
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A writer that creates one file in a staging directory while the clean-up walks it
+    /// (the HDF5 case: the temporary file was registered just before the signal) cannot
+    /// leave the directory behind.
+    #[test]
+    fn a_file_created_during_the_cleanup_does_not_keep_the_staging_directory() {
+        let root = tempfile::tempdir().unwrap();
+        for attempt in 0..40 {
+            let staging = root.path().join(format!("{STAGING_PREFIX}test-{attempt}"));
+            std::fs::create_dir(&staging).unwrap();
+            for i in 0..400 {
+                std::fs::write(staging.join(format!("f{i:04}")), b"x").unwrap();
+            }
+            let late = staging.join(format!(".products.h5{TEMP_MARKER}1"));
+            let barrier = std::sync::Arc::new(std::sync::Barrier::new(2));
+            let b = barrier.clone();
+            let writer = std::thread::spawn(move || {
+                b.wait();
+                // Spread the creation over the walk of the directory.
+                std::thread::sleep(std::time::Duration::from_micros(50 * attempt as u64));
+                let _ = std::fs::write(&late, b"hdf5");
+            });
+            barrier.wait();
+            remove_registered(std::slice::from_ref(&staging));
+            writer.join().unwrap();
+            assert!(
+                !staging.exists(),
+                "attempt {attempt}: staging directory left"
+            );
+        }
+    }
 }

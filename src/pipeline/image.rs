@@ -22,12 +22,13 @@ pub struct ImagingStage {
 
 impl ImagingStage {
     /// Prepares the imagers of `sensor` for an input of `meta` with field of view
-    /// `geometry` (padding from `wrap_tolerance`, see [`crate::imaging::pad_width`]).
+    /// `geometry` (padding from `options.wrap_tolerance`, see
+    /// [`crate::imaging::pad_width`]; transforms in `options.fft_precision`).
     pub fn new(
         sensor: &Sensor,
         meta: &CubeMeta,
         geometry: &Geometry,
-        wrap_tolerance: f64,
+        options: &super::RunOptions,
     ) -> Result<Self> {
         let channels: Vec<&Sensor> = match sensor.cfa_channels() {
             [] => vec![sensor],
@@ -35,7 +36,10 @@ impl ImagingStage {
         };
         let imagers = channels
             .into_iter()
-            .map(|s| Imager::new(s, meta, geometry, wrap_tolerance))
+            .map(|s| {
+                Imager::new(s, meta, geometry, options.wrap_tolerance)
+                    .map(|i| i.with_precision(options.fft_precision))
+            })
             .collect::<Result<Vec<_>>>()?;
         Ok(ImagingStage {
             imagers,
@@ -51,6 +55,45 @@ impl ImagingStage {
             .iter()
             .map(|i| i.weights().active_bands().len())
             .sum()
+    }
+
+    /// The input bands no colour channel uses (zero spectral weight), as one warning:
+    /// the engine never reads them, so they are not checked for NaN, ±Inf or negative
+    /// radiance (README, "Input"). `None` when every band is read.
+    pub fn unread_bands_warning(&self, meta: &CubeMeta) -> Option<String> {
+        let mut used = vec![false; meta.bands()];
+        for im in &self.imagers {
+            for b in im.weights().active_bands() {
+                used[b] = true;
+            }
+        }
+        let unread: Vec<usize> = (0..used.len()).filter(|&b| !used[b]).collect();
+        if unread.is_empty() {
+            return None;
+        }
+        // Runs of consecutive bands, as `a–b (λa–λb µm)`.
+        let mut runs: Vec<String> = Vec::new();
+        let mut i = 0;
+        while i < unread.len() {
+            let mut j = i;
+            while j + 1 < unread.len() && unread[j + 1] == unread[j] + 1 {
+                j += 1;
+            }
+            let (a, b) = (unread[i], unread[j]);
+            let (la, lb) = (meta.wavelength_um[a], meta.wavelength_um[b]);
+            runs.push(if a == b {
+                format!("{a} ({la} µm)")
+            } else {
+                format!("{a}–{b} ({la}–{lb} µm)")
+            });
+            i = j + 1;
+        }
+        Some(format!(
+            "{} of {} input bands have zero sensor response and were not read (so not checked for NaN, ±Inf or negative radiance): band {}",
+            unread.len(),
+            meta.bands(),
+            runs.join(", ")
+        ))
     }
 
     /// Scene → detector sampling (the same for every channel).
@@ -82,6 +125,7 @@ impl ImagingStage {
             self.stats.inverse_s += s.inverse_s;
             self.stats.bands_used += s.bands_used;
             self.stats.padded_shape = s.padded_shape;
+            self.stats.precision = s.precision;
             planes.push(e);
         }
         match self.pattern {

@@ -62,6 +62,9 @@ pub struct RunOptions {
     /// not depend on it). A sequence cut into pieces (e.g. chunks on several machines) and
     /// run piece by piece with the right `first_frame` gives the same DN as one run.
     pub first_frame: u64,
+    /// Precision of the imaging engine's per-band forward FFTs (f32 with f64 accumulation
+    /// by default; f64 for the reference path), see [`crate::imaging::fft::FftPrecision`].
+    pub fft_precision: crate::imaging::fft::FftPrecision,
 }
 
 impl Default for RunOptions {
@@ -74,6 +77,7 @@ impl Default for RunOptions {
             frames: 1,
             calibration: Some(CalibrationOptions::default()),
             first_frame: 0,
+            fft_precision: Default::default(),
         }
     }
 }
@@ -265,8 +269,9 @@ pub fn run(
     let geometry = input_geometry(options, &meta)?;
     let mut warnings = reader.warnings();
     warnings.extend(sensor.warnings().iter().cloned());
-    let mut imaging = ImagingStage::new(sensor, &meta, &geometry, options.wrap_tolerance)?;
+    let mut imaging = ImagingStage::new(sensor, &meta, &geometry, options)?;
     warnings.extend(imaging.sampling().warnings.iter().cloned());
+    warnings.extend(imaging.unread_bands_warning(&meta));
     warnings.extend(sensor.detector().warnings().iter().cloned());
     let (input_frames, active) = (reader.frames(), imaging.bands_used());
     let n_frames = frame_count(input_frames, options.frames, options.first_frame)?;

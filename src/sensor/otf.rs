@@ -12,7 +12,7 @@ use crate::error::Result;
 use crate::motion;
 use crate::optics::{self, MeasuredMtf};
 
-use super::config::{resolve, SensorConfig, TurbulenceConfig};
+use super::config::{SensorConfig, TurbulenceConfig};
 
 /// One transfer-function component; its name is the sensor-file section that enables it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -123,8 +123,13 @@ pub struct SystemOtf {
 }
 
 impl SystemOtf {
-    /// Resolves the enabled components of `sensor` (reads a measured-MTF file if any).
-    pub fn new(sensor: &SensorConfig) -> Result<Self> {
+    /// Resolves the enabled components of `sensor`, with its measured MTF (the `[measured]`
+    /// section, already loaded by the build step).
+    ///
+    /// Only [`super::Sensor::build`] constructs a cascade: it validates the configuration
+    /// and reads every file first, so no stage can build a transfer function from an
+    /// unresolved description (read it with [`super::Sensor::otf`]).
+    pub(super) fn new(sensor: &SensorConfig, measured: Option<MeasuredMtf>) -> Result<Self> {
         let mut components = Vec::new();
         if sensor.diffraction.enabled {
             components.push(Component::Diffraction);
@@ -200,23 +205,9 @@ impl SystemOtf {
         if sensor.gaussian.is_some() {
             components.push(Component::Gaussian);
         }
-        let measured = match &sensor.measured {
-            Some(m) => {
-                components.push(Component::Measured);
-                Some(match (&m.csv, &m.freq_cy_per_mrad, &m.mtf) {
-                    (Some(path), _, _) => MeasuredMtf::from_csv(&resolve(&sensor.base_dir, path))?,
-                    (None, Some(f), Some(v)) => MeasuredMtf::new(f.clone(), v.clone())?,
-                    _ => {
-                        return Err(crate::Error::param(
-                            "measured",
-                            "incomplete",
-                            "either `csv` or both `freq_cy_per_mrad` and `mtf`",
-                        ))
-                    }
-                })
-            }
-            None => None,
-        };
+        if measured.is_some() {
+            components.push(Component::Measured);
+        }
         Ok(SystemOtf {
             components,
             aperture_diameter_m: sensor.aperture_diameter_m(),

@@ -32,8 +32,8 @@
 //! Multi-channel sensors (the 3-CCD `ccd` and the FOI `threeband`) declare a `channel`
 //! option ([`CHANNEL_OPTION`]); one run simulates one channel, and a caller wanting all of
 //! them loops over [`PresetInfo::channel_values`]. A Bayer sensor (`ccd-bayer`) has a
-//! `[cfa]` section instead; [`cfa_channel`] derives the single-colour sensor for each
-//! colour plane.
+//! `[cfa]` section instead; [`super::Sensor::build`] derives the single-colour sensor of
+//! each colour plane ([`super::Sensor::cfa_channels`]).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -469,26 +469,17 @@ pub fn resolved_toml(name: &str, options: &[String]) -> Result<String> {
 
 /// The single-colour sensor seen by the pixels under one filter of a colour filter array:
 /// a copy of `config` whose `filter` is `filter × cfa.<colour>` and without `[cfa]`
-/// (`channel` is [`crate::cfa::RED`], `GREEN` or `BLUE`). The choice is recorded as
-/// `selected_options.cfa_channel`.
+/// (`channel` is [`crate::cfa::RED`], `GREEN` or `BLUE`), given the filter and dye spectra
+/// already built by [`super::Sensor::build`] (the only caller: it reads each file once,
+/// and stages use the result through [`super::Sensor::cfa_channels`]). The choice is
+/// recorded as `selected_options.cfa_channel`.
 ///
 /// The product is exact when either factor is a constant (the case of the `ccd-bayer`
 /// preset, whose `[filter]` is 1); otherwise it is tabulated at every breakpoint of the
 /// product and at least every 1 nm across its support.
 ///
-/// Errors: `config` has no `[cfa]`, `channel` > 2, or a spectrum cannot be built.
-pub fn cfa_channel(config: &SensorConfig, channel: usize) -> Result<SensorConfig> {
-    let cfa = cfa_table(config)?;
-    let dye = dye_config(cfa, channel)?;
-    let dir = &config.base_dir;
-    let filter = config.filter.build(dir, "filter")?;
-    let dye = dye.build(dir, "cfa")?;
-    cfa_channel_with(config, channel, &filter, &dye)
-}
-
-/// As [`cfa_channel`], with the filter and dye spectra already built (by
-/// [`super::Sensor::build`], which reads each file once).
-pub(crate) fn cfa_channel_with(
+/// Errors: `config` has no `[cfa]`, `channel` > 2, or the product has no support.
+pub(super) fn cfa_channel_with(
     config: &SensorConfig,
     channel: usize,
     filter_spectrum: &Spectrum,
@@ -574,7 +565,7 @@ fn scaled_config(s: &SpectrumConfig, factor: f64) -> Option<SpectrumConfig> {
     })
 }
 
-/// The pointwise product of two spectrum descriptions (see [`cfa_channel`]).
+/// The pointwise product of two spectrum descriptions (see [`cfa_channel_with`]).
 fn spectrum_config_product(
     a: &SpectrumConfig,
     b: &SpectrumConfig,

@@ -11,11 +11,12 @@
 use std::ops::Deref;
 
 use crate::detector::{AutoGainConfig, DetectorInputs, DetectorModel};
-use crate::error::Result;
+use crate::error::{Error, Result};
+use crate::optics::MeasuredMtf;
 use crate::radiometry::{planck_spectral_radiance, CameraEquation};
 use crate::spectrum::Spectrum;
 
-use super::config::SensorConfig;
+use super::config::{resolve, SensorConfig};
 use super::otf::SystemOtf;
 use super::presets;
 
@@ -120,7 +121,7 @@ impl Sensor {
         let spectra = Spectra::build(config)?;
         let response = spectra.chain(&spectra.filter);
         let camera = config.camera_equation()?;
-        let otf = SystemOtf::new(config)?;
+        let otf = SystemOtf::new(config, measured_mtf(config)?)?;
         let filter_qe = spectra.filter.product(&spectra.qe);
         let detector = DetectorModel::build(
             &config.detector,
@@ -245,6 +246,26 @@ impl Sensor {
             .auto_gain_for(&d, &self.response, &self.camera, config)?
             .0)
     }
+}
+
+/// The measured MTF of the `[measured]` section: its CSV table (read here, once, relative
+/// to the sensor file) or the inline `freq_cy_per_mrad` / `mtf` lists. `None` without the
+/// section.
+fn measured_mtf(config: &SensorConfig) -> Result<Option<MeasuredMtf>> {
+    let Some(m) = &config.measured else {
+        return Ok(None);
+    };
+    Ok(Some(match (&m.csv, &m.freq_cy_per_mrad, &m.mtf) {
+        (Some(path), _, _) => MeasuredMtf::from_csv(&resolve(&config.base_dir, path))?,
+        (None, Some(f), Some(v)) => MeasuredMtf::new(f.clone(), v.clone())?,
+        _ => {
+            return Err(Error::param(
+                "measured",
+                "incomplete",
+                "either `csv` or both `freq_cy_per_mrad` and `mtf`",
+            ))
+        }
+    }))
 }
 
 /// White-balance gains of the three colour channels: each channel is scaled so that a

@@ -187,3 +187,60 @@ fn only_the_build_step_and_readers_see_base_dir() {
     }
     assert!(seen.is_empty(), "base_dir outside the build step: {seen:?}");
 }
+
+#[test]
+fn only_the_build_step_resolves_what_a_sensor_file_refers_to() {
+    // The calls that read a sensor-referenced file or build a resolved piece from the
+    // schema: a stage reaching one of them would resolve configuration on its own (the
+    // `base_dir` check above misses calls that take the directory from the config
+    // internally, as `presets::cfa_channel` did before it became part of the build).
+    let resolving = [
+        "SystemOtf::new",
+        "DetectorModel::build",
+        "MeasuredMtf::from_csv",
+        "Spectrum::from_csv",
+        "resolve_path",
+        "cfa_channel(",
+        "cfa_channel_with(",
+    ];
+    // Where they are defined, and the build step itself.
+    let allowed = [
+        "src/sensor/",
+        "src/io/",
+        "src/spectrum.rs",
+        "src/optics.rs",
+        "src/detector/mod.rs",
+    ];
+    let mut seen = Vec::new();
+    for file in rust_files(&root().join("src")) {
+        let rel = file
+            .strip_prefix(root())
+            .unwrap()
+            .to_string_lossy()
+            .to_string();
+        if allowed.iter().any(|a| rel.starts_with(a)) {
+            continue;
+        }
+        let text = std::fs::read_to_string(&file).unwrap();
+        for (n, line) in text.lines().enumerate() {
+            let code = line.split("//").next().unwrap_or("");
+            for call in resolving {
+                if code.contains(call) {
+                    seen.push(format!("{rel}:{}: {call}", n + 1));
+                }
+            }
+            // `SpectrumConfig::build(dir, field)` (a `.build(` with arguments that is not
+            // `Sensor::build`).
+            if let Some(i) = code.find(".build(") {
+                let args = &code[i + ".build(".len()..];
+                if !args.starts_with(')') && !code.contains("Sensor::build(") {
+                    seen.push(format!("{rel}:{}: .build(…)", n + 1));
+                }
+            }
+        }
+    }
+    assert!(
+        seen.is_empty(),
+        "configuration resolved outside the build step: {seen:?}"
+    );
+}

@@ -748,3 +748,391 @@ fn documented_minimal_header_opens_and_unknown_units_count_as_missing() {
     assert_eq!(r.meta().wavelength_um, vec![8.5, 10.5]);
     assert!(r.warnings()[0].contains("below 30"), "{:?}", r.warnings());
 }
+
+/// The requests a chunked reader must serve exactly: every band in order, one band, an
+/// unsorted non-contiguous set, a contiguous run, a repeated band, nothing.
+const REQUESTS: [&[usize]; 6] = [
+    &[0, 1, 2, 3, 4, 5, 6],
+    &[3],
+    &[6, 0, 3],
+    &[2, 3, 4],
+    &[5, 5],
+    &[],
+];
+
+/// Opens `hdr` once per read path: as is, and (BIP) forced through the band-order scratch
+/// file (direct size 0) or forced direct (direct size ∞).
+fn readers_for(hdr: &Path) -> Vec<(String, EnviReader)> {
+    let mut out = vec![("default".to_string(), EnviReader::open(hdr).unwrap())];
+    for (name, bytes) in [("scratch", 0), ("direct", u64::MAX)] {
+        let mut r = EnviReader::open(hdr).unwrap();
+        r.set_bip_direct_frame_bytes(bytes);
+        out.push((name.to_string(), r));
+    }
+    out
+}
+
+#[test]
+fn chunked_reads_give_the_layout_truth_for_every_interleave_type_and_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = (7, 6, 5);
+    let offset = 37;
+    for (layout, il) in [
+        (Layout::Bsq, "bsq"),
+        (Layout::Bil, "bil"),
+        (Layout::Bip, "bip"),
+    ] {
+        for ty in [2u32, 3, 4, 5, 12] {
+            for big in [false, true] {
+                let stem = format!("{il}{ty}{}", if big { "be" } else { "le" });
+                let h = header(dims, ty, il, &format!("header offset = {offset}\n"))
+                    .replace(
+                        "byte order = 0",
+                        if big {
+                            "byte order = 1"
+                        } else {
+                            "byte order = 0"
+                        },
+                    )
+                    .replace("header offset = 0\n", "");
+                write(&dir.path().join(format!("{stem}.hdr")), h);
+                let mut bytes = vec![0xA5u8; offset];
+                bytes.extend(pack(&arrange(layout, dims, truth), ty, big));
+                write(&dir.path().join(format!("{stem}.img")), bytes);
+                for (path, mut r) in readers_for(&dir.path().join(format!("{stem}.hdr"))) {
+                    for req in REQUESTS {
+                        let planes = r.read_bands(0, req).unwrap();
+                        assert_eq!(planes.len(), req.len());
+                        for (plane, &b) in planes.iter().zip(req) {
+                            assert_eq!(plane.dim(), (6, 5));
+                            for ((row, col), v) in plane.indexed_iter() {
+                                assert_eq!(
+                                    f64::from(*v),
+                                    truth(b, row, col),
+                                    "{stem} ({path}) request {req:?} band {b} ({row},{col})"
+                                );
+                            }
+                        }
+                    }
+                    // read_band is the one-band chunk.
+                    for b in [4, 1] {
+                        assert_eq!(
+                            r.read_band(0, b).unwrap(),
+                            r.read_bands(0, &[b]).unwrap()[0]
+                        );
+                    }
+                    let spilled = layout_is_bip(il) && path == "scratch";
+                    assert_eq!(r.uses_scratch_file(), spilled, "{stem} ({path})");
+                }
+            }
+        }
+    }
+}
+
+fn layout_is_bip(il: &str) -> bool {
+    il == "bip"
+}
+
+#[test]
+fn interleaves_agree_bit_for_bit_with_gain_offset_ignore_value_and_reversed_bands() {
+    // Random f32 values (not round numbers), a per-band gain and offset, a `data ignore
+    // value` planted at known pixels and a wavenumber grid (stored in decreasing
+    // wavelength, handed out reversed): BSQ, BIL and BIP of the same cube must give the
+    // same bits for every request, and count the ignored samples of the bands read only.
+    let dir = tempfile::tempdir().unwrap();
+    let (nb, nr, nc) = (6, 9, 11);
+    let mut m = Mix(42);
+    let mut stored: Vec<f64> = (0..nb * nr * nc).map(|_| f64::from(m.f32())).collect();
+    let ignore = -9999.0;
+    // Ignored samples: stored band 1 at 3 pixels, stored band 4 at 1 pixel.
+    for (b, r, c) in [(1, 0, 0), (1, 4, 7), (1, 8, 10), (4, 2, 3)] {
+        stored[(b * nr + r) * nc + c] = ignore;
+    }
+    let bsq = |b: usize, r: usize, c: usize| stored[(b * nr + r) * nc + c];
+    let gains: Vec<String> = (0..nb)
+        .map(|b| format!("{}", 0.5 + 0.25 * b as f64))
+        .collect();
+    let offsets: Vec<String> = (0..nb).map(|b| format!("{}", 1.5 * b as f64)).collect();
+    let wavenumbers: Vec<String> = (0..nb)
+        .map(|b| format!("{}", 1750.0 + 50.0 * b as f64))
+        .collect();
+    let extra = format!(
+        "data gain values = {{{}}}\ndata offset values = {{{}}}\ndata ignore value = {ignore}\n",
+        gains.join(", "),
+        offsets.join(", ")
+    );
+    let mut results = Vec::new();
+    for (layout, il) in [
+        (Layout::Bsq, "bsq"),
+        (Layout::Bil, "bil"),
+        (Layout::Bip, "bip"),
+    ] {
+        let h = header((nb, nr, nc), 4, il, &extra)
+            .replace(
+                "wavelength units = Micrometers",
+                "wavelength units = Wavenumber",
+            )
+            .replace(
+                &format!(
+                    "wavelength = {{{}}}",
+                    (0..nb)
+                        .map(|b| format!("{}", 8 + b))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+                &format!("wavelength = {{{}}}", wavenumbers.join(", ")),
+            );
+        write(&dir.path().join(format!("{il}.hdr")), h);
+        write(
+            &dir.path().join(format!("{il}.img")),
+            pack(&arrange(layout, (nb, nr, nc), bsq), 4, false),
+        );
+        for (path, mut r) in readers_for(&dir.path().join(format!("{il}.hdr"))) {
+            // Output band k is stored band nb-1-k (reversed grid).
+            let planes = r.read_bands(0, &[4, 1, 3]).unwrap();
+            for (plane, k) in planes.iter().zip([4usize, 1, 3]) {
+                let fb = nb - 1 - k;
+                let (g, o) = (0.5 + 0.25 * fb as f64, 1.5 * fb as f64);
+                for ((row, col), v) in plane.indexed_iter() {
+                    let s = bsq(fb, row, col);
+                    let want = if s == ignore { 0.0 } else { (g * s + o) as f32 };
+                    assert_eq!(
+                        v.to_bits(),
+                        want.to_bits(),
+                        "{il} ({path}) band {k} ({row},{col})"
+                    );
+                }
+            }
+            // Output bands 4 (stored 1: 3 ignored) and 1 (stored 4: 1 ignored) were read.
+            let w = r.warnings().join("\n");
+            assert!(
+                w.contains("4 samples (pixel × band, in the 3 bands read)"),
+                "{il}: {w}"
+            );
+            results.push(planes);
+        }
+    }
+    assert!(results.windows(2).all(|p| p[0] == p[1]));
+}
+
+#[test]
+fn nan_in_a_band_not_requested_is_not_seen_and_in_a_requested_band_names_band_and_pixel() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = (5, 4, 6);
+    let poisoned = |b: usize, r: usize, c: usize| {
+        if (b, r, c) == (2, 3, 4) {
+            f64::NAN
+        } else {
+            truth(b, r, c)
+        }
+    };
+    for (layout, il) in [
+        (Layout::Bsq, "bsq"),
+        (Layout::Bil, "bil"),
+        (Layout::Bip, "bip"),
+    ] {
+        write(
+            &dir.path().join(format!("{il}.hdr")),
+            header(dims, 4, il, ""),
+        );
+        write(
+            &dir.path().join(format!("{il}.img")),
+            pack(&arrange(layout, dims, poisoned), 4, false),
+        );
+        for (path, mut r) in readers_for(&dir.path().join(format!("{il}.hdr"))) {
+            // The chunk around the poisoned band reads and checks fine.
+            let planes = r.read_bands(0, &[4, 0, 1, 3]).unwrap();
+            assert_eq!(planes.len(), 4, "{il} ({path})");
+            let e = r.read_bands(0, &[1, 2]).unwrap_err().to_string();
+            assert!(
+                e.contains("band 2 (10 µm), row 3, col 4: radiance NaN")
+                    && e.contains(&format!("{il}.img")),
+                "{il} ({path}): {e}"
+            );
+            let e = r.read_band(0, 2).unwrap_err().to_string();
+            assert!(
+                e.contains("band 2 (10 µm), row 3, col 4"),
+                "{il} ({path}): {e}"
+            );
+        }
+    }
+}
+
+#[test]
+fn scratch_file_is_never_visible_in_the_temporary_directory() {
+    // The BIP scratch file is unlinked as soon as it is created: while the reader is open
+    // and after it is dropped, the temporary directory holds nothing of this process.
+    let dir = tempfile::tempdir().unwrap();
+    let dims = (4, 3, 2);
+    write(&dir.path().join("p.hdr"), header(dims, 4, "bip", ""));
+    write(
+        &dir.path().join("p.img"),
+        pack(&arrange(Layout::Bip, dims, truth), 4, false),
+    );
+    // Other tests of this process create (and at once unlink) scratch files too: a name
+    // counts only if it is still there 50 ms later.
+    let mine = || -> Vec<String> {
+        let tag = format!(".eoir-band-spill-{}-", std::process::id());
+        let list = || -> Vec<String> {
+            names(&std::env::temp_dir())
+                .into_iter()
+                .filter(|n| n.starts_with(&tag))
+                .collect()
+        };
+        let first = list();
+        std::thread::sleep(std::time::Duration::from_millis(50));
+        let second = list();
+        first.into_iter().filter(|n| second.contains(n)).collect()
+    };
+    let mut r = EnviReader::open(&dir.path().join("p.hdr")).unwrap();
+    r.set_bip_direct_frame_bytes(0);
+    assert_eq!(
+        r.read_bands(0, &[3, 1]).unwrap()[1][[2, 1]],
+        truth(1, 2, 1) as f32
+    );
+    assert!(r.uses_scratch_file());
+    assert!(mine().is_empty(), "{:?}", mine());
+    drop(r);
+    assert!(mine().is_empty(), "{:?}", mine());
+}
+
+/// Band centres (µm) of the end-to-end cubes: multimir's filter 4 (4.55–5.2 µm) and its
+/// QE cutoff (5.4 µm) give bands 0–2 and 9–10 zero spectral weight.
+pub(crate) const RUN_WAVELENGTHS_UM: [f64; 11] =
+    [3.0, 3.5, 4.0, 4.4, 4.6, 4.8, 5.0, 5.2, 5.4, 6.0, 7.0];
+/// Rows = columns of the end-to-end cubes and of the detector.
+pub(crate) const RUN_SIZE: usize = 16;
+
+/// The radiance of band `b` at pixel (r, c) of the end-to-end cubes: 1 W m-2 sr-1 µm-1
+/// everywhere, except NaN at band 1 (3.5 µm, unused) pixel (3, 4), −1 at band 10 (7 µm,
+/// unused) pixel (0, 0), and, when `poison_used`, NaN at band 5 (4.8 µm) pixel (7, 2).
+pub(crate) fn run_radiance(poison_used: bool) -> impl Fn(usize, usize, usize) -> f64 {
+    move |b, r, c| match (b, r, c) {
+        (1, 3, 4) => f64::NAN,
+        (10, 0, 0) => -1.0,
+        (5, 7, 2) if poison_used => f64::NAN,
+        _ => 1.0,
+    }
+}
+
+/// The full field of view (degrees) of the end-to-end cubes: one multimir IFOV (24 µm /
+/// 100 mm) per sample.
+pub(crate) fn run_fov_deg() -> f64 {
+    (RUN_SIZE as f64 * 0.24e-3).to_degrees()
+}
+
+/// Runs multimir (filter 4, 100 mm optics, 16 × 16 detector, no calibration) on `reader`.
+pub(crate) fn run_multimir(
+    reader: &mut dyn CubeReader,
+) -> eoir::error::Result<eoir::pipeline::RunOutput> {
+    let n = RUN_SIZE.to_string();
+    let sensor = eoir::sensor::presets::load(
+        "multimir",
+        &["filter=4".into(), "optics=100mm".into()],
+        &[format!("detector.rows={n}"), format!("detector.cols={n}")],
+    )
+    .and_then(|c| eoir::sensor::Sensor::build(&c))?;
+    let options = eoir::pipeline::RunOptions {
+        calibration: None,
+        ..Default::default()
+    };
+    eoir::pipeline::run(&sensor, reader, &options, |_, _| {})
+}
+
+/// Checks the outcome of [`run_multimir`] on a cube from [`run_radiance`]: the clean
+/// cube runs, reports 6 of 11 bands used and warns that bands 0–2 and 9–10 were not read;
+/// the poisoned one fails naming band 5 and pixel (7, 2) in `file`.
+pub(crate) fn check_unread_band_runs(
+    what: &str,
+    clean: eoir::error::Result<eoir::pipeline::RunOutput>,
+    poisoned: eoir::error::Result<eoir::pipeline::RunOutput>,
+    file: &str,
+) {
+    let out = clean.unwrap_or_else(|e| panic!("{what}: {e}"));
+    assert_eq!(
+        (out.report.input.bands, out.report.input.bands_used),
+        (11, 6),
+        "{what}"
+    );
+    let w = out.report.warnings.join("\n");
+    assert!(
+        w.contains("5 of 11 input bands have zero sensor response and were not read")
+            && w.contains("band 0–2 (3–4 µm), 9–10 (6–7 µm)"),
+        "{what}: {w}"
+    );
+    let e = poisoned.map(|_| ()).unwrap_err().to_string();
+    assert!(
+        e.contains("band 5 (4.8 µm), row 7, col 2: radiance NaN") && e.contains(file),
+        "{what}: {e}"
+    );
+}
+
+#[test]
+fn a_run_reads_and_checks_exactly_the_bands_with_sensor_response_envi_and_npy() {
+    let dir = tempfile::tempdir().unwrap();
+    let dims = (RUN_WAVELENGTHS_UM.len(), RUN_SIZE, RUN_SIZE);
+    let wl: Vec<String> = RUN_WAVELENGTHS_UM.iter().map(|w| w.to_string()).collect();
+    let fov = run_fov_deg();
+    for (layout, il) in [
+        (Layout::Bsq, "bsq"),
+        (Layout::Bil, "bil"),
+        (Layout::Bip, "bip"),
+    ] {
+        let mut outcomes = Vec::new();
+        for poison in [false, true] {
+            let stem = format!("{il}{poison}");
+            let h = format!(
+                "ENVI\nsamples = {n}\nlines = {n}\nbands = {}\ndata type = 4\ninterleave = {il}\nbyte order = 0\nwavelength units = Micrometers\nwavelength = {{{}}}\neoir radiance units = W m-2 sr-1 um-1\neoir fov deg = {{{fov}, {fov}}}\n",
+                dims.0,
+                wl.join(", "),
+                n = RUN_SIZE
+            );
+            write(&dir.path().join(format!("{stem}.hdr")), h);
+            let values = arrange(layout, dims, run_radiance(poison));
+            write(
+                &dir.path().join(format!("{stem}.img")),
+                pack(&values, 4, false),
+            );
+            // BIP twice: direct and through the scratch file.
+            let mut r = EnviReader::open(&dir.path().join(format!("{stem}.hdr"))).unwrap();
+            r.set_bip_direct_frame_bytes(if poison { u64::MAX } else { 0 });
+            outcomes.push(run_multimir(&mut r));
+        }
+        let poisoned = outcomes.pop().unwrap();
+        let clean = outcomes.pop().unwrap();
+        check_unread_band_runs(il, clean, poisoned, &format!("{il}true.img"));
+    }
+
+    // NPY ([band, row, col] f4) with its sidecar.
+    let mut outcomes = Vec::new();
+    for poison in [false, true] {
+        let path = dir.path().join(format!("cube{poison}.npy"));
+        let f = run_radiance(poison);
+        let mut dict = format!(
+            "{{'descr': '<f4', 'fortran_order': False, 'shape': ({}, {RUN_SIZE}, {RUN_SIZE}), }}",
+            dims.0
+        );
+        while (10 + dict.len() + 1) % 64 != 0 {
+            dict.push(' ');
+        }
+        dict.push('\n');
+        let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+        bytes.extend((dict.len() as u16).to_le_bytes());
+        bytes.extend(dict.as_bytes());
+        bytes.extend(pack(&arrange(Layout::Bsq, dims, f), 4, false));
+        write(&path, bytes);
+        write(
+            &path.with_extension("json"),
+            format!(
+                "{{\"wavelength_um\": [{}], \"units\": \"W m-2 sr-1 um-1\", \"fov_deg\": [{fov}, {fov}]}}",
+                wl.join(", ")
+            ),
+        );
+        outcomes.push(run_multimir(
+            &mut eoir::io::npy::NpyReader::open(&path).unwrap(),
+        ));
+    }
+    let poisoned = outcomes.pop().unwrap();
+    let clean = outcomes.pop().unwrap();
+    check_unread_band_runs("npy", clean, poisoned, "cubetrue.npy");
+}

@@ -468,3 +468,168 @@ fn half_float_channels_are_read_as_f32() {
         assert_eq!(*v, (r * COLS + c) as f32 * 0.25);
     }
 }
+
+/// Writes `channels` (name → f32 or f16 plane of `rows × cols`) with `encoding`.
+fn write_blocks(
+    path: &Path,
+    rows: usize,
+    cols: usize,
+    channels: Vec<(String, FlatSamples)>,
+    encoding: Encoding,
+) {
+    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = channels
+        .into_iter()
+        .map(|(n, v)| AnyChannel::new(Text::from(n.as_str()), v))
+        .collect();
+    let mut attributes = LayerAttributes::default();
+    attributes.other.insert(
+        Text::from("emissiveUnits"),
+        AttributeValue::Text(Text::from("W.m^-2.sr^-1.um^-1")),
+    );
+    let layer = Layer::new((cols, rows), attributes, encoding, AnyChannels::sort(list));
+    Image::from_layer(layer).write().to_file(path).unwrap();
+}
+
+#[test]
+fn many_blocks_tiles_mixed_sample_types_and_other_channels_decode_exactly() {
+    // 70 rows × 45 columns: ZIP scan-line blocks of 16 lines (the last one short), PIZ
+    // blocks of 32, RLE blocks of 1, and 16 × 16 tiles (partial tiles at the right and
+    // bottom edges). Spectral channels f32 and f16 are interleaved by name with an alpha
+    // channel (`A`), a reflective channel (`T.…`) and a u32 id channel, all of which share
+    // every block; each band must come out exactly as written.
+    use exr::math::Vec2;
+    use exr::meta::attribute::LineOrder;
+    use exr::prelude::{f16, Blocks, Compression};
+    let (rows, cols) = (70, 45);
+    let value = |band: usize, r: usize, c: usize| ((band * 1000 + r * 45 + c) % 2048) as f32 * 0.5;
+    let bands = [(2.0, false), (3.5, true), (4.25, false), (10.0, true)];
+    let mut channels: Vec<(String, FlatSamples)> = bands
+        .iter()
+        .enumerate()
+        .map(|(b, &(um, half))| {
+            let v: Vec<f32> = (0..rows * cols)
+                .map(|i| value(b, i / cols, i % cols))
+                .collect();
+            let samples = if half {
+                FlatSamples::F16(v.into_iter().map(f16::from_f32).collect())
+            } else {
+                FlatSamples::F32(v)
+            };
+            (
+                format!("S0.{}um", format!("{um}").replace('.', ",")),
+                samples,
+            )
+        })
+        .collect();
+    channels.push(("A".into(), FlatSamples::F32(vec![1.0; rows * cols])));
+    channels.push((
+        "T.500nm".into(),
+        FlatSamples::F16(vec![f16::from_f32(0.5); rows * cols]),
+    ));
+    channels.push((
+        "id".into(),
+        FlatSamples::U32((0..(rows * cols) as u32).collect()),
+    ));
+    let dir = tempfile::tempdir().unwrap();
+    let encodings = [
+        ("zip", Compression::ZIP16, Blocks::ScanLines),
+        ("piz", Compression::PIZ, Blocks::ScanLines),
+        ("rle", Compression::RLE, Blocks::ScanLines),
+        ("tiles", Compression::ZIP1, Blocks::Tiles(Vec2(16, 16))),
+    ];
+    for (name, compression, blocks) in encodings {
+        let path = dir.path().join(format!("{name}.exr"));
+        let encoding = Encoding {
+            compression,
+            blocks,
+            line_order: LineOrder::Increasing,
+        };
+        write_blocks(&path, rows, cols, channels.clone(), encoding);
+        let mut r = ExrReader::open(&path).unwrap();
+        assert_eq!(r.meta().wavelength_um, vec![2.0, 3.5, 4.25, 10.0], "{name}");
+        let planes = r.read_bands(0, &[3, 0, 2, 1]).unwrap();
+        for (plane, b) in planes.iter().zip([3usize, 0, 2, 1]) {
+            for ((row, col), v) in plane.indexed_iter() {
+                assert_eq!(*v, value(b, row, col), "{name} band {b} ({row},{col})");
+            }
+        }
+        assert!(
+            r.warnings()
+                .iter()
+                .any(|w| w.contains("ignored 3 channel(s)")),
+            "{name}: {:?}",
+            r.warnings()
+        );
+    }
+}
+
+#[test]
+fn nan_in_a_band_not_read_is_not_seen_and_in_a_band_read_names_band_and_pixel() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("nan.exr");
+    let mut channels = Vec::new();
+    for (b, nm) in [800.0, 900.0, 1000.0].iter().enumerate() {
+        let mut v = plane(|r, c| pattern(b, r, c));
+        if b == 1 {
+            v[2 * COLS + 5] = f32::NAN;
+        }
+        channels.push((nm_name(*nm), v));
+    }
+    write_foreign(&path, channels, &[("emissiveUnits", "W.m^-2.sr^-1.um^-1")]);
+    let mut r = ExrReader::open(&path).unwrap();
+    assert_eq!(r.read_bands(0, &[2, 0]).unwrap().len(), 2);
+    let e = r.read_bands(0, &[0, 1]).unwrap_err().to_string();
+    assert!(
+        e.contains("band 1 (0.9 µm), row 2, col 5: radiance NaN") && e.contains("nan.exr"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_run_reads_and_checks_exactly_the_bands_with_sensor_response() {
+    use crate::io_envi::{
+        check_unread_band_runs, run_fov_deg, run_multimir, run_radiance, RUN_SIZE,
+        RUN_WAVELENGTHS_UM,
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let fov = run_fov_deg();
+    let mut outcomes = Vec::new();
+    for poison in [false, true] {
+        let f = run_radiance(poison);
+        let channels: Vec<(String, FlatSamples)> = RUN_WAVELENGTHS_UM
+            .iter()
+            .enumerate()
+            .map(|(b, um)| {
+                let v = (0..RUN_SIZE * RUN_SIZE)
+                    .map(|i| f(b, i / RUN_SIZE, i % RUN_SIZE) as f32)
+                    .collect();
+                (nm_name(um * 1000.0), FlatSamples::F32(v))
+            })
+            .collect();
+        let path = dir.path().join(format!("run{poison}.exr"));
+        let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = channels
+            .into_iter()
+            .map(|(n, v)| AnyChannel::new(Text::from(n.as_str()), v))
+            .collect();
+        let mut attributes = LayerAttributes::default();
+        attributes.other.insert(
+            Text::from("emissiveUnits"),
+            AttributeValue::Text(Text::from("W.m^-2.sr^-1.um^-1")),
+        );
+        attributes.other.insert(
+            Text::from("fov"),
+            AttributeValue::Text(Text::from(format!("{fov} {fov}").as_str())),
+        );
+        let layer = Layer::new(
+            (RUN_SIZE, RUN_SIZE),
+            attributes,
+            Encoding::SMALL_LOSSLESS,
+            AnyChannels::sort(list),
+        );
+        Image::from_layer(layer).write().to_file(&path).unwrap();
+        outcomes.push(run_multimir(&mut ExrReader::open(&path).unwrap()));
+    }
+    let poisoned = outcomes.pop().unwrap();
+    let clean = outcomes.pop().unwrap();
+    check_unread_band_runs("exr", clean, poisoned, "runtrue.exr");
+}

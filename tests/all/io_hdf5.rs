@@ -355,3 +355,373 @@ fn bundle_is_readable_back() {
     assert!(err.contains("dn"), "{err}");
     assert!(!out.exists());
 }
+
+// ---------------------------------------------------------------------------------------
+// The shared metadata path (issue 8 / 12): units through the one unit parser, the field
+// of view from `fov_deg` / `ifov_rad` / `fov`, `--radiance-units`, extra attributes as
+// warnings, the wavelength checks of every reader.
+
+/// The third-party fixtures' field of view (44 x 36 samples of 120 µrad; see
+/// tests/fixtures/third_party/make_fixtures.py).
+const FIXTURE_FOV_DEG: [f64; 2] = [0.30252171582907467, 0.24751776749651563];
+
+fn fixture(name: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/third_party")
+        .join(name)
+}
+
+/// MultimIR with a 16 x 20 detector (inside the fixtures' field of view).
+fn small_sensor() -> eoir::sensor::Sensor {
+    eoir::sensor::presets::load(
+        "multimir",
+        &[],
+        &["detector.rows=16".into(), "detector.cols=20".into()],
+    )
+    .and_then(|c| eoir::sensor::Sensor::build(&c))
+    .unwrap()
+}
+
+fn mean_electrons(reader: &mut dyn CubeReader) -> Array2<f32> {
+    let opts = eoir::pipeline::RunOptions::default();
+    let out = eoir::pipeline::run(&small_sensor(), reader, &opts, |_, _| {}).unwrap();
+    out.frames[0].electrons_mean.clone()
+}
+
+fn worst_relative(a: &Array2<f32>, b: &Array2<f32>) -> f32 {
+    assert_eq!(a.dim(), b.dim());
+    a.iter()
+        .zip(b.iter())
+        .map(|(x, y)| ((x - y) / y).abs())
+        .fold(0.0f32, f32::max)
+}
+
+/// h5py_nm.h5 (written by h5py: values per nm, `units` a numpy byte string, `fov = [h, v]`,
+/// wavelengths in decreasing order, two foreign attributes) gives the electrons of the
+/// per-µm ENVI cube (SPy) with no extra flags.
+#[test]
+fn h5py_cube_with_fov_and_per_nm_units_gives_the_envi_electrons() {
+    let mut h5 = eoir::io::open(&fixture("h5py_nm.h5")).unwrap();
+    let m = h5.meta().clone();
+    assert_eq!(m.units, RadianceUnits::SpectralPerUm);
+    let g = m.geometry.expect("geometry from `fov`");
+    assert!((g.fov_x_deg - FIXTURE_FOV_DEG[0]).abs() < 1e-15, "{g:?}");
+    assert!((g.fov_y_deg - FIXTURE_FOV_DEG[1]).abs() < 1e-15, "{g:?}");
+    assert!(m.wavelength_um.windows(2).all(|w| w[1] > w[0]));
+    let source = h5.units_source();
+    assert!(
+        source.starts_with("stated:") && source.contains("nm-1") && source.contains("1000"),
+        "{source}"
+    );
+    let w = h5.warnings();
+    for key in ["`description`", "`instrument_id`", "decreasing order"] {
+        assert!(w.iter().any(|x| x.contains(key)), "{key}: {w:?}");
+    }
+
+    let mut envi = eoir::io::open(&fixture("envi_bsq.hdr")).unwrap();
+    assert_eq!(envi.meta().wavelength_um.len(), m.wavelength_um.len());
+    for (a, b) in envi.meta().wavelength_um.iter().zip(&m.wavelength_um) {
+        assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+    }
+    // The values, converted to W m-2 sr-1 µm-1 and put in increasing order, are the
+    // ENVI file's to float32 rounding.
+    for b in 0..m.bands() {
+        let x = h5.read_band(0, b).unwrap();
+        let y = envi.read_band(0, b).unwrap();
+        assert!(worst_relative(&x, &y) < 1e-6, "band {b}");
+    }
+    let e_h5 = mean_electrons(h5.as_mut());
+    let e_envi = mean_electrons(envi.as_mut());
+    let mean = e_envi.iter().map(|v| *v as f64).sum::<f64>() / e_envi.len() as f64;
+    assert!(mean > 1e6, "{mean} e-");
+    let worst = worst_relative(&e_h5, &e_envi);
+    assert!(worst < 1e-3, "relative difference {worst}");
+}
+
+/// The CLI runs the h5py file with no extra flags and records where the units came from.
+#[test]
+fn cli_runs_the_h5py_cube_with_no_extra_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("out");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_eoir"))
+        .args(["run", "--quiet", "--set", "detector.rows=16", "--set"])
+        .arg("detector.cols=20")
+        .arg(fixture("h5py_nm.h5"))
+        .arg("-o")
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("report.json")).unwrap())
+            .unwrap();
+    let source = report["input"]["units_source"].as_str().unwrap();
+    assert!(
+        source.starts_with("stated:") && source.contains("nm-1"),
+        "{source}"
+    );
+}
+
+/// Writes `/radiance` (2 bands, 3 x 4) with `wavelength_um` and the given extra attributes.
+fn write_with(
+    path: &Path,
+    wavelength: &[f64],
+    f64_attrs: &[(&str, &[f64])],
+    strs: &[(&str, &str)],
+) {
+    let data = Array3::from_shape_fn((wavelength.len(), 3, 4), |(b, r, c)| {
+        1.0 + b as f32 + 0.1 * r as f32 + 0.01 * c as f32
+    });
+    write_direct(path, &data, Some(wavelength), None);
+    let file = File::open_rw(path).unwrap();
+    let ds = file.dataset("radiance").unwrap();
+    for (name, v) in f64_attrs {
+        ds.new_attr_builder().with_data(*v).create(*name).unwrap();
+    }
+    for (name, v) in strs {
+        put_str(&ds, name, v);
+    }
+}
+
+#[test]
+fn units_go_through_the_one_parser_and_the_override() {
+    let dir = tempfile::tempdir().unwrap();
+    // AVIRIS units: 1 µW cm-2 sr-1 nm-1 = 10 W m-2 sr-1 µm-1.
+    let p = dir.path().join("aviris.h5");
+    write_with(&p, &[1.0, 2.0], &[], &[("units", "uW cm-2 sr-1 nm-1")]);
+    let mut r = Hdf5Reader::open(&p).unwrap();
+    assert_eq!(r.meta().units, RadianceUnits::SpectralPerUm);
+    let plane = r.read_band(0, 1).unwrap();
+    assert!((plane[[0, 0]] - 20.0).abs() < 1e-5, "{}", plane[[0, 0]]);
+
+    // `radiance_units` is read when `units` is absent; a disagreeing second statement is a
+    // warning and the first wins.
+    let p = dir.path().join("two.h5");
+    write_with(
+        &p,
+        &[1.0, 2.0],
+        &[],
+        &[
+            ("units", "W/(m2 sr um)"),
+            ("radiance_units", "W m-2 sr-1 nm-1"),
+        ],
+    );
+    let mut r = Hdf5Reader::open(&p).unwrap();
+    assert!((r.read_band(0, 0).unwrap()[[0, 0]] - 1.0).abs() < 1e-6);
+    assert!(
+        r.warnings().iter().any(|w| w.contains("disagrees")),
+        "{:?}",
+        r.warnings()
+    );
+
+    // No statement: an error naming the attribute and the override.
+    let p = dir.path().join("none.h5");
+    write_with(&p, &[1.0, 2.0], &[], &[]);
+    let e = Hdf5Reader::open(&p).err().unwrap().to_string();
+    assert!(
+        e.contains("`units`") && e.contains("--radiance-units"),
+        "{e}"
+    );
+    // ... which the override satisfies, scaling the values.
+    let opts = eoir::io::ReadOptions {
+        radiance_units: Some("W m-2 sr-1 nm-1".into()),
+    };
+    let mut r = eoir::io::open_with(&p, &opts).unwrap();
+    assert!((r.read_band(0, 0).unwrap()[[0, 0]] - 1000.0).abs() < 1e-3);
+    assert!(
+        r.units_source().starts_with("override:"),
+        "{}",
+        r.units_source()
+    );
+    // An override against a stated unit wins with a warning.
+    let p = dir.path().join("stated.h5");
+    write_with(&p, &[1.0, 2.0], &[], &[("units", "W m-2 sr-1 um-1")]);
+    let r = eoir::io::open_with(&p, &opts).unwrap();
+    assert!(
+        r.warnings().iter().any(|w| w.contains("overrides")),
+        "{:?}",
+        r.warnings()
+    );
+    // A non-radiance override is refused naming the option.
+    let bad = eoir::io::ReadOptions {
+        radiance_units: Some("K".into()),
+    };
+    let e = eoir::io::open_with(&p, &bad).err().unwrap().to_string();
+    assert!(e.contains("--radiance-units") && e.contains("`K`"), "{e}");
+}
+
+#[test]
+fn field_of_view_precedence_and_checks() {
+    let dir = tempfile::tempdir().unwrap();
+    let u = [("units", "W m-2 sr-1 um-1")];
+    // `fov` alone, one value: the vertical follows from square samples (3 rows, 4 cols).
+    let p = dir.path().join("h.h5");
+    write_with(&p, &[1.0, 2.0], &[("fov", &[2.0])], &u);
+    let g = Hdf5Reader::open(&p).unwrap().meta().geometry.unwrap();
+    assert_eq!((g.fov_x_deg, g.fov_y_deg), (2.0, 1.5));
+
+    // `fov_deg` wins over a disagreeing `fov`, with a warning naming both.
+    let p = dir.path().join("both.h5");
+    write_with(
+        &p,
+        &[1.0, 2.0],
+        &[("fov_deg", &[4.0, 3.0]), ("fov", &[2.0, 1.5])],
+        &u,
+    );
+    let r = Hdf5Reader::open(&p).unwrap();
+    let g = r.meta().geometry.unwrap();
+    assert_eq!((g.fov_x_deg, g.fov_y_deg), (4.0, 3.0));
+    assert!(
+        r.warnings()
+            .iter()
+            .any(|w| w.contains("`fov`") && w.contains("fov_deg")),
+        "{:?}",
+        r.warnings()
+    );
+
+    // `ifov_rad`: the field of view of 4 x 3 samples.
+    let p = dir.path().join("ifov.h5");
+    write_with(
+        &p,
+        &[1.0, 2.0],
+        &[("ifov_rad", &[1e-3, 1e-3]), ("range_m", &[500.0])],
+        &u,
+    );
+    let g = Hdf5Reader::open(&p).unwrap().meta().geometry.unwrap();
+    assert!((g.fov_x_deg - (4e-3f64).to_degrees()).abs() < 1e-9, "{g:?}");
+    assert_eq!(g.range_m, Some(500.0));
+
+    // The checks and wording every reader shares.
+    for (name, attrs, want) in [
+        (
+            "fov180.h5",
+            vec![("fov", &[200.0, 1.0][..])],
+            "(0, 180) degrees",
+        ),
+        (
+            "two.h5",
+            vec![
+                ("fov_deg", &[1.0, 1.0][..]),
+                ("ifov_rad", &[1e-3, 1e-3][..]),
+            ],
+            "give only one",
+        ),
+        (
+            "range.h5",
+            vec![("range_m", &[100.0][..])],
+            "without a field of view",
+        ),
+        (
+            "three.h5",
+            vec![("fov_deg", &[1.0, 1.0, 1.0][..])],
+            "has 3 values",
+        ),
+    ] {
+        let p = dir.path().join(name);
+        write_with(&p, &[1.0, 2.0], &attrs, &u);
+        let e = Hdf5Reader::open(&p).err().unwrap().to_string();
+        assert!(e.contains(want) && e.contains(name), "{name}: {e}");
+    }
+}
+
+#[test]
+fn wavelength_checks_are_the_shared_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    let u = [("units", "W m-2 sr-1 um-1")];
+    let p = dir.path().join("order.h5");
+    write_with(&p, &[1.0, 3.0, 2.0], &[], &u);
+    let e = Hdf5Reader::open(&p).err().unwrap().to_string();
+    assert!(
+        e.contains("strictly increasing or strictly decreasing") && e.contains("wavelength[1]"),
+        "{e}"
+    );
+    let p = dir.path().join("neg.h5");
+    write_with(&p, &[-1.0, 2.0], &[], &u);
+    let e = Hdf5Reader::open(&p).err().unwrap().to_string();
+    assert!(e.contains("not a positive number"), "{e}");
+    let p = dir.path().join("fwhm.h5");
+    write_with(&p, &[1.0, 2.0], &[("fwhm_um", &[0.1])], &u);
+    let e = Hdf5Reader::open(&p).err().unwrap().to_string();
+    assert!(e.contains("`fwhm_um`") && e.contains("1 values"), "{e}");
+
+    // Decreasing: handed out in increasing order, widths with them.
+    let p = dir.path().join("down.h5");
+    write_with(&p, &[2.0, 1.0], &[("fwhm_um", &[0.2, 0.1])], &u);
+    let mut r = Hdf5Reader::open(&p).unwrap();
+    assert_eq!(r.meta().wavelength_um, vec![1.0, 2.0]);
+    assert_eq!(r.meta().fwhm_um, Some(vec![0.1, 0.2]));
+    // Stored band 1 (value 2.0 at [0, 0]) is output band 0.
+    assert!((r.read_band(0, 0).unwrap()[[0, 0]] - 2.0).abs() < 1e-6);
+    assert!((r.read_band(0, 1).unwrap()[[0, 0]] - 1.0).abs() < 1e-6);
+}
+
+/// `read_bands` reads runs of adjacent stored bands with one hyperslab; whatever the
+/// order asked for (and the stored order), it returns exactly what `read_band` does.
+#[test]
+fn read_bands_matches_read_band_in_any_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let (bands, rows, cols) = (7, 5, 6);
+    let data = Array3::from_shape_fn((bands, rows, cols), |(b, r, c)| value(0, b, r, c));
+    for (name, wavelength, chunked) in [
+        (
+            "up.h5",
+            (0..bands).map(|b| 1.0 + b as f64).collect::<Vec<_>>(),
+            false,
+        ),
+        (
+            "down.h5",
+            (0..bands).map(|b| 9.0 - b as f64).collect(),
+            false,
+        ),
+        (
+            "chunked.h5",
+            (0..bands).map(|b| 1.0 + b as f64).collect(),
+            true,
+        ),
+    ] {
+        let p = dir.path().join(name);
+        {
+            let file = File::create(&p).unwrap();
+            let builder = file.new_dataset_builder();
+            let builder = if chunked {
+                builder.chunk((3, 2, cols))
+            } else {
+                builder
+            };
+            let ds = builder.with_data(data.view()).create("radiance").unwrap();
+            ds.new_attr_builder()
+                .with_data(&wavelength[..])
+                .create("wavelength_um")
+                .unwrap();
+            put_str(&ds, "units", "W m-2 sr-1 nm-1");
+        }
+        let mut r = Hdf5Reader::open(&p).unwrap();
+        let singles: Vec<Array2<f32>> = (0..bands).map(|b| r.read_band(0, b).unwrap()).collect();
+        for request in [
+            vec![0, 1, 2, 3, 4, 5, 6],
+            vec![6, 5, 4, 3],
+            vec![2, 3, 0, 6, 5, 1],
+            vec![4],
+            vec![],
+            vec![1, 1],
+        ] {
+            let got = r.read_bands(0, &request).unwrap();
+            assert_eq!(got.len(), request.len(), "{name} {request:?}");
+            for (plane, &b) in got.iter().zip(&request) {
+                assert_eq!(plane, &singles[b], "{name} {request:?} band {b}");
+            }
+        }
+        // Per-nm values arrive ×1000.
+        assert!(
+            (singles[0][[0, 0]] - 1000.0 * value(0, if name == "down.h5" { 6 } else { 0 }, 0, 0))
+                .abs()
+                <= 1e-3
+        );
+        let e = r.read_bands(0, &[0, 7]).unwrap_err().to_string();
+        assert!(e.contains("band 7"), "{e}");
+    }
+}

@@ -457,3 +457,62 @@ fn documented_sidecar_example_is_accepted() {
     assert_eq!(r.meta().geometry, None);
     assert_eq!(r.warnings().len(), 1);
 }
+
+#[test]
+fn chunked_reads_of_planes_larger_than_one_read_block_are_exact() {
+    // A big-endian f8 sequence [2 frames, 3 bands, 600, 1000]: each plane is 4.8 MB, more
+    // than the reader's 4 MiB read block, so a plane arrives in two reads. Any chunk of
+    // bands, unsorted, repeated or empty, gives the stored values exactly.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("big.npy");
+    let (nf, nb, nr, nc) = (2, 3, 600, 1000);
+    let v = |f: usize, b: usize, r: usize, c: usize| {
+        (f * 7 + b) as f64 * 1e6 + (r * nc + c) as f64 * 0.5
+    };
+    let mut data = Vec::with_capacity(nf * nb * nr * nc * 8);
+    for f in 0..nf {
+        for b in 0..nb {
+            for r in 0..nr {
+                for c in 0..nc {
+                    data.extend(v(f, b, r, c).to_be_bytes());
+                }
+            }
+        }
+    }
+    let dict =
+        format!("{{'descr': '>f8', 'fortran_order': False, 'shape': ({nf}, {nb}, {nr}, {nc}), }}");
+    std::fs::write(&path, npy_bytes(1, &dict, &data)).unwrap();
+    sidecar(
+        &path,
+        r#"{"wavelength_um": [1.0, 2.0, 3.0], "units": "W m-2 sr-1 um-1"}"#,
+    );
+    let mut r = NpyReader::open(&path).unwrap();
+    for frame in [1, 0] {
+        for req in [&[0usize, 1, 2][..], &[2, 0], &[1, 1], &[]] {
+            let planes = r.read_bands(frame, req).unwrap();
+            assert_eq!(planes.len(), req.len());
+            for (plane, &b) in planes.iter().zip(req) {
+                for (rr, cc) in [
+                    (0, 0),
+                    (0, nc - 1),
+                    (299, 500),
+                    (524, 287),
+                    (nr - 1, nc - 1),
+                ] {
+                    assert_eq!(
+                        plane[[rr, cc]],
+                        v(frame, b, rr, cc) as f32,
+                        "frame {frame} band {b} ({rr},{cc})"
+                    );
+                }
+                let want: Vec<f32> = (0..nr * nc)
+                    .map(|i| v(frame, b, i / nc, i % nc) as f32)
+                    .collect();
+                assert!(
+                    plane.iter().zip(&want).all(|(a, w)| a == w),
+                    "frame {frame} band {b}"
+                );
+            }
+        }
+    }
+}

@@ -24,6 +24,7 @@ mod motion;
 mod nuc_cli;
 mod optics;
 mod otf_table;
+mod perf_determinism;
 mod presets;
 mod presets_run;
 mod processing;

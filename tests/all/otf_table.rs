@@ -10,7 +10,7 @@ use eoir::imaging::otf_table::{RadialTables, TABLE_TOLERANCE};
 use eoir::imaging::{Imager, DEFAULT_WRAP_TOLERANCE};
 use eoir::io::MemoryCube;
 use eoir::scene::{Cube, CubeMeta, Geometry, RadianceUnits};
-use eoir::sensor::{Component, SensorConfig, SystemOtf};
+use eoir::sensor::{Component, Sensor, SensorConfig, SystemOtf};
 
 const BASE: &str = r#"
 name = "t"
@@ -101,7 +101,7 @@ fn tabulated_profiles_match_direct_evaluation_for_every_component() {
     let mut worst_overall: f64 = 0.0;
     for case in cases() {
         let s = sensor(&case);
-        let otf = SystemOtf::new(&s).unwrap();
+        let otf = Sensor::build(&s).unwrap().otf().clone();
         assert!(otf.components().iter().any(|c| c.is_chromatic()));
         let tables = RadialTables::new(&otf, lo, hi);
         let rho_max = 1.3 * otf.cutoff_cy_per_rad(lo);
@@ -195,7 +195,7 @@ fn no_aperture_term_passes_beyond_the_cutoff() {
         vec!["diffraction.enabled=false", "aberration.rms_waves=0.07"],
     ] {
         let s = sensor(&o);
-        let otf = SystemOtf::new(&s).unwrap();
+        let otf = Sensor::build(&s).unwrap().otf().clone();
         assert!(!otf.components().contains(&Component::Diffraction));
         let tables = RadialTables::new(&otf, 3.0, 5.0);
         for lambda in [3.0, 4.0, 5.0] {
@@ -259,20 +259,24 @@ fn one_and_two_threads_give_identical_output() {
 fn slant_path_at_equal_heights_equals_horizontal_in_the_cascade() {
     let (cn2_1m, h, range) = (2e-13, 25.0_f64, 4000.0);
     let cn2_h = cn2_1m * h.powf(-4.0 / 3.0);
-    let horizontal = SystemOtf::new(&sensor(&[
+    let horizontal = Sensor::build(&sensor(&[
         "turbulence.path=\"horizontal\"",
         &format!("turbulence.cn2={cn2_h:e}"),
         "turbulence.range_m=4000",
     ]))
-    .unwrap();
-    let slant = SystemOtf::new(&sensor(&[
+    .unwrap()
+    .otf()
+    .clone();
+    let slant = Sensor::build(&sensor(&[
         "turbulence.path=\"slant\"",
         &format!("turbulence.cn2_at_1m={cn2_1m:e}"),
         "turbulence.sensor_height_m=25",
         "turbulence.target_height_m=25",
         &format!("turbulence.range_m={range}"),
     ]))
-    .unwrap();
+    .unwrap()
+    .otf()
+    .clone();
     for lambda in [0.6, 1.6, 4.0, 10.0] {
         let (a, b) = (
             horizontal.fried_r0_m(lambda).unwrap(),

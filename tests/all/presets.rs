@@ -4,7 +4,7 @@
 
 use eoir::cfa::{BLUE, GREEN, RED};
 use eoir::sensor::presets::{self, PresetInfo};
-use eoir::sensor::{Sensor, SensorConfig, SpectrumConfig, SystemOtf};
+use eoir::sensor::{Sensor, SensorConfig, SpectrumConfig};
 
 fn opts(list: &[&str]) -> Vec<String> {
     list.iter().map(|s| s.to_string()).collect()
@@ -65,7 +65,7 @@ fn every_preset_and_option_combination_loads_and_validates() {
         for combo in p.option_combinations() {
             let s = presets::load(&p.name, &combo, &[])
                 .unwrap_or_else(|e| panic!("{} {combo:?}: {e}", p.name));
-            SystemOtf::new(&s).unwrap();
+            Sensor::build(&s).unwrap();
             let (lo, hi) = Sensor::build(&s).unwrap().response().clone().support_um();
             assert!(hi > lo, "{} {combo:?}: empty band", p.name);
             // The choices are recorded.
@@ -384,11 +384,21 @@ fn bayer_channels_are_the_chain_times_each_colour_filter() {
     let s = load("ccd-bayer", &[]);
     let cfa = s.cfa.clone().expect("ccd-bayer has a [cfa] section");
     assert_eq!(cfa.pattern, eoir::cfa::CfaPattern::Rggb);
-    let base = Sensor::build(&s).unwrap().response().clone();
+    let built = Sensor::build(&s).unwrap();
+    let base = built.response().clone();
+    // The channels come from the build step only (one per colour, in RED, GREEN, BLUE order).
+    assert_eq!(built.cfa_channels().len(), 3);
+    let channel = |ch: usize| built.cfa_channels()[ch].config().clone();
     for (ch, dye) in [(RED, &cfa.red), (GREEN, &cfa.green), (BLUE, &cfa.blue)] {
-        let c = presets::cfa_channel(&s, ch).unwrap();
+        let c = channel(ch);
         assert!(c.cfa.is_none());
         let r = Sensor::build(&c).unwrap().response().clone();
+        // The channel sensor's own response is the same curve.
+        let own = built.cfa_channels()[ch].response();
+        for i in 0..50 {
+            let l = 0.4 + 0.006 * i as f64;
+            assert!((own.eval(l) - r.eval(l)).abs() < 1e-15, "{ch} at {l}");
+        }
         let d = dye.build(std::path::Path::new("."), "dye").unwrap();
         // Pointwise product, checked at wavelengths that are not table nodes.
         for i in 0..200 {
@@ -400,11 +410,14 @@ fn bayer_channels_are_the_chain_times_each_colour_filter() {
     // Red, green, blue centroids in the right order.
     let c: Vec<f64> = [RED, GREEN, BLUE]
         .iter()
-        .map(|&ch| centroid_um(&presets::cfa_channel(&s, ch).unwrap()))
+        .map(|&ch| centroid_um(&channel(ch)))
         .collect();
     assert!(c[0] > c[1] && c[1] > c[2], "{c:?}");
-    assert!(presets::cfa_channel(&s, 3).is_err());
-    assert!(presets::cfa_channel(&load("ccd", &[]), RED).is_err());
+    // A sensor without [cfa] has no channels.
+    assert!(Sensor::build(&load("ccd", &[]))
+        .unwrap()
+        .cfa_channels()
+        .is_empty());
 
     // A non-constant base filter is tabulated: still the pointwise product, to the
     // interpolation error of a 1 nm grid.
@@ -415,7 +428,9 @@ fn bayer_channels_are_the_chain_times_each_colour_filter() {
         edge_width_um: 0.02,
         peak: 0.9,
     };
-    let c = presets::cfa_channel(&s2, GREEN).unwrap();
+    let c = Sensor::build(&s2).unwrap().cfa_channels()[GREEN]
+        .config()
+        .clone();
     let f = s2.filter.build(std::path::Path::new("."), "f").unwrap();
     let d = cfa.green.build(std::path::Path::new("."), "g").unwrap();
     let q = s2

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use eoir::sensor::{presets, Component, FrequencyGrid, SensorConfig, SystemOtf};
+use eoir::sensor::{presets, Component, FrequencyGrid, Sensor, SensorConfig};
 
 const MINIMAL: &str = r#"
 name = "t"
@@ -42,7 +42,7 @@ fn minimal_file_loads_with_defaults() {
     let s = parse(MINIMAL, &[]).unwrap();
     assert!(s.diffraction.enabled);
     assert!((s.detector.fill_factor() - (20.0f64 / 24.0).powi(2)).abs() < 1e-12);
-    let otf = SystemOtf::new(&s).unwrap();
+    let otf = Sensor::build(&s).unwrap().otf().clone();
     assert_eq!(
         otf.components(),
         &[Component::Diffraction, Component::Detector]
@@ -138,7 +138,7 @@ fn embedded_presets_load_and_validate() {
     for (name, _) in presets::PRESETS {
         let s = presets::load(name, &[], &[]).unwrap();
         assert!(!s.description.is_empty());
-        SystemOtf::new(&s).unwrap();
+        Sensor::build(&s).unwrap();
     }
     let e = presets::load("no-such-sensor", &[], &[])
         .unwrap_err()
@@ -198,7 +198,7 @@ fn grid_otf_is_the_product_of_components() {
         ],
     )
     .unwrap();
-    let otf = SystemOtf::new(&s).unwrap();
+    let otf = Sensor::build(&s).unwrap().otf().clone();
     assert_eq!(otf.components().len(), 8);
     let ifov = s.ifov_rad() / 3.0;
     let grid = FrequencyGrid::real_fft(16, 20, ifov, ifov);
@@ -224,7 +224,7 @@ fn grid_otf_is_the_product_of_components() {
 #[test]
 fn detector_at_nyquist_full_fill_is_two_over_pi() {
     let s = parse(MINIMAL, &["detector.active_width_m=24e-6"]).unwrap();
-    let otf = SystemOtf::new(&s).unwrap();
+    let otf = Sensor::build(&s).unwrap().otf().clone();
     let v = otf.component(Component::Detector, s.nyquist_cy_per_rad(), 0.0, 4.0);
     assert!((v - 2.0 / std::f64::consts::PI).abs() < 1e-12);
 }

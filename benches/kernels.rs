@@ -1,0 +1,128 @@
+//! Criterion benches of the imaging kernels at the 1024² scene's padded frame (1080²):
+//! forward real 2-D FFT (f32 and f64), the fused column pass (column FFTs + OTF profile
+//! lookup + accumulation) of a chunk of bands, and the inverse transform + sampling.
+//!
+//! `cargo bench --bench kernels` (figures in BENCHMARKS.md).
+
+use std::hint::black_box;
+use std::path::PathBuf;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use ndarray::Array2;
+use num_complex::{Complex, Complex64};
+
+use eoir::imaging::fft::{FftFloat, RealFft2};
+use eoir::imaging::{accumulate_chunk, Imager, BANDS_PER_CHUNK, DEFAULT_WRAP_TOLERANCE};
+use eoir::scene::{CubeMeta, Geometry, RadianceUnits};
+use eoir::sensor::{Sensor, SensorConfig};
+
+const N: usize = 1024;
+
+fn imager() -> Imager {
+    let toml = r#"
+name = "bench"
+[optics]
+focal_length_m = 0.1
+f_number = 2.0
+obscuration_ratio = 0.3
+[filter]
+kind = "top_hat"
+lo_um = 1.0
+hi_um = 1.7
+[detector]
+rows = 341
+cols = 341
+pitch_m = 15e-6
+active_width_m = 14e-6
+integration_time_s = 1e-3
+quantum_efficiency = { kind = "ideal_qe", peak = 0.8, cutoff_um = 1.7 }
+[aberration]
+rms_waves = 0.05
+[defocus]
+w020_waves = 0.3
+[jitter]
+sigma_rad = 10e-6
+[turbulence]
+path = "horizontal"
+cn2 = 1e-15
+range_m = 2000
+"#;
+    let c = SensorConfig::from_toml_str(toml, "bench", PathBuf::from("."), &[]).unwrap();
+    let s = Sensor::build(&c).unwrap();
+    let meta = CubeMeta {
+        wavelength_um: (0..32).map(|i| 0.95 + 0.8 * i as f64 / 31.0).collect(),
+        fwhm_um: None,
+        units: RadianceUnits::SpectralPerUm,
+        geometry: Some(Geometry::from_ifov(50e-6, 50e-6, N, N)),
+        rows: N,
+        cols: N,
+    };
+    Imager::new(&s, &meta, &meta.geometry.unwrap(), DEFAULT_WRAP_TOLERANCE).unwrap()
+}
+
+fn frame<T: FftFloat>(ny: usize, nx: usize) -> Array2<T> {
+    Array2::from_shape_fn((ny, nx), |(r, c)| {
+        T::nearest_from_f64(((r * 31 + c * 17) % 101) as f64)
+    })
+}
+
+fn forward<T: FftFloat>(c: &mut Criterion, name: &str, ny: usize, nx: usize) {
+    let fft = RealFft2::<T>::new(ny, nx);
+    let mut x = frame::<T>(ny, nx);
+    let mut spec = Array2::<Complex<T>>::zeros(fft.spectrum_shape());
+    let mut scratch = Vec::new();
+    c.bench_function(name, |b| {
+        b.iter(|| {
+            fft.forward(&mut x, &mut spec, &mut scratch);
+            black_box(&spec);
+        })
+    });
+}
+
+fn kernels(c: &mut Criterion) {
+    let im = imager();
+    let (ny, nx) = (im.sampling().y.padded_len, im.sampling().x.padded_len);
+    let hc = nx / 2 + 1;
+    forward::<f32>(c, &format!("forward real 2-D FFT f32 {ny}x{nx}"), ny, nx);
+    forward::<f64>(c, &format!("forward real 2-D FFT f64 {ny}x{nx}"), ny, nx);
+    // The fused column pass of one chunk (f32 row spectra, f64 accumulator).
+    let fft = RealFft2::<f32>::new(ny, nx);
+    let x = frame::<f32>(ny, nx);
+    let mut rowspecs = vec![vec![Complex::new(0.0f32, 0.0); ny * hc]; BANDS_PER_CHUNK];
+    for rs in rowspecs.iter_mut() {
+        fft.rows_forward(
+            |r, row| row.copy_from_slice(x.row(r).as_slice().unwrap()),
+            rs,
+        );
+    }
+    let bands: Vec<_> = (0..BANDS_PER_CHUNK)
+        .map(|i| (1.0, im.band_profile(1.0 + 0.1 * i as f64)))
+        .collect();
+    let mut acc_t = vec![Complex64::new(0.0, 0.0); ny * hc];
+    c.bench_function(
+        &format!("column FFTs + OTF profile accumulate, {BANDS_PER_CHUNK} bands f32 {ny}x{nx}"),
+        |b| {
+            b.iter(|| {
+                accumulate_chunk(&fft, &rowspecs, &bands, im.radial_samples(), &mut acc_t);
+                black_box(&acc_t);
+            })
+        },
+    );
+    // Inverse + sampling onto the 341² detector.
+    let spec0 = Array2::from_shape_fn((ny, hc), |(v, u)| {
+        Complex64::new(1.0 / (1.0 + (u * u + v * v) as f64), 0.0)
+    });
+    c.bench_function(&format!("inverse + sampling {ny}x{nx} -> 341x341"), |b| {
+        b.iter(|| {
+            let mut s = spec0.clone();
+            black_box(im.detector_image(&mut s));
+        })
+    });
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(10);
+    targets = kernels
+}
+criterion_main!(benches);

@@ -1,0 +1,223 @@
+//! The fast imaging paths (issue 9): f32 forward transforms against the f64 reference
+//! path, results independent of the thread count for both precisions, and bands read in
+//! bounded chunks (memory flat in the band count).
+
+use std::path::PathBuf;
+
+use ndarray::{Array2, Array3};
+
+use eoir::imaging::fft::FftPrecision;
+use eoir::imaging::{Imager, BANDS_PER_CHUNK, DEFAULT_WRAP_TOLERANCE};
+use eoir::io::{CubeReader, MemoryCube};
+use eoir::scene::{Cube, CubeMeta, Geometry, RadianceUnits};
+use eoir::sensor::{Sensor, SensorConfig};
+
+/// SWIR sensor with every transfer-function component on (the benchmark's sensor, small).
+const SWIR: &str = r#"
+name = "swir-all"
+[optics]
+focal_length_m = 0.1
+f_number = 2.0
+obscuration_ratio = 0.3
+[filter]
+kind = "top_hat"
+lo_um = 1.0
+hi_um = 1.7
+[detector]
+rows = 40
+cols = 54
+pitch_m = 15e-6
+active_width_m = 14e-6
+integration_time_s = 1e-3
+quantum_efficiency = { kind = "ideal_qe", peak = 0.8, cutoff_um = 1.7 }
+[aberration]
+rms_waves = 0.05
+[defocus]
+w020_waves = 0.3
+[motion]
+smear_rad = 60e-6
+direction_deg = 30
+[jitter]
+sigma_rad = 10e-6
+[turbulence]
+path = "horizontal"
+cn2 = 1e-15
+range_m = 2000
+[aerosol]
+absorption_per_m = 1e-5
+scattering_per_m = 2e-5
+range_m = 2000
+particle_radius_m = 1e-6
+[gaussian]
+sigma_rad = 5e-6
+"#;
+
+fn sensor() -> Sensor {
+    let c = SensorConfig::from_toml_str(SWIR, "swir.toml", PathBuf::from("."), &[]).unwrap();
+    Sensor::build(&c).unwrap()
+}
+
+/// A texture cube (incommensurate cosines plus hash noise, different per band) of
+/// `bands` bands over 0.95–1.75 µm, `rows × cols` samples of `ifov_rad`.
+fn texture(bands: usize, rows: usize, cols: usize, ifov_rad: f64) -> Cube {
+    let wl: Vec<f64> = (0..bands)
+        .map(|i| 0.95 + 0.8 * i as f64 / (bands - 1) as f64)
+        .collect();
+    let data = Array3::from_shape_fn((bands, rows, cols), |(b, r, c)| {
+        let (r, c, b) = (r as f32, c as f32, b as f32);
+        10.0 + 3.0 * (0.071 * r + 0.013 * c + 0.1 * b).cos()
+            + 2.0 * (0.31 * c - 0.05 * r).cos() * (0.02 * b).sin()
+            + ((r * 0.77 + c * 1.31).sin() * 43_758.547).fract()
+    });
+    let meta = CubeMeta {
+        wavelength_um: wl,
+        fwhm_um: None,
+        units: RadianceUnits::SpectralPerUm,
+        geometry: Some(Geometry::from_ifov(ifov_rad, ifov_rad, rows, cols)),
+        rows,
+        cols,
+    };
+    Cube::new(data, meta).unwrap()
+}
+
+fn image(s: &Sensor, c: &Cube, precision: FftPrecision, threads: usize) -> Array2<f64> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    pool.install(|| {
+        let imager = Imager::new(
+            s,
+            &c.meta,
+            &c.meta.geometry.unwrap(),
+            DEFAULT_WRAP_TOLERANCE,
+        )
+        .unwrap()
+        .with_precision(precision);
+        assert_eq!(imager.precision(), precision);
+        let mut reader = MemoryCube::new(c.clone());
+        let (e, stats) = imager.mean_electrons(&mut reader, 0, |_, _| {}).unwrap();
+        assert_eq!(stats.precision, precision);
+        e
+    })
+}
+
+/// The two test cubes: detector/scene ratio 3 (integer path: phase ramp, inverse FFT,
+/// point sampling) and 2.5 (trigonometric interpolation path); band counts that are not a
+/// multiple of the chunk, frames wider than one column block.
+fn cases(s: &Sensor) -> Vec<Cube> {
+    let (r, c) = (s.detector.rows, s.detector.cols);
+    vec![
+        texture(23, 3 * r, 3 * c, s.ifov_rad() / 3.0),
+        texture(10, 5 * r / 2, 5 * c / 2, s.ifov_rad() / 2.5),
+    ]
+}
+
+/// f32 forward transforms with f64 accumulation stay within 1e-6 of the mean signal of
+/// the f64 path at every pixel (the issue's bound); and they are a different computation
+/// (the error is not exactly zero), so this compares two paths, not one with itself.
+#[test]
+fn f32_transforms_within_1e_6_of_the_mean_signal() {
+    let s = sensor();
+    for c in cases(&s) {
+        let e64 = image(&s, &c, FftPrecision::F64, 2);
+        let e32 = image(&s, &c, FftPrecision::F32, 2);
+        let mean = e64.mean().unwrap();
+        assert!(mean > 0.0);
+        let worst = e64
+            .iter()
+            .zip(e32.iter())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        eprintln!(
+            "{}x{}x{}: max |f32 - f64| = {:.3e} of the mean",
+            c.meta.rows,
+            c.meta.cols,
+            c.meta.wavelength_um.len(),
+            worst / mean
+        );
+        assert!(worst <= 1e-6 * mean, "{:e} of the mean", worst / mean);
+        assert!(worst > 0.0, "the f32 path was not used");
+    }
+}
+
+/// 1 and 2 worker threads give the same electrons bit for bit, in both precisions (each
+/// accumulator sample is updated by one worker, bands in order).
+#[test]
+fn one_and_two_threads_identical_in_both_precisions() {
+    let s = sensor();
+    for c in cases(&s) {
+        for p in [FftPrecision::F32, FftPrecision::F64] {
+            let one = image(&s, &c, p, 1);
+            let two = image(&s, &c, p, 2);
+            assert!(one.iter().all(|v| v.is_finite() && *v > 0.0));
+            assert_eq!(one.dim(), two.dim());
+            for (a, b) in one.iter().zip(two.iter()) {
+                assert_eq!(a.to_bits(), b.to_bits(), "{p:?}");
+            }
+        }
+    }
+}
+
+/// A reader that records how the engine asks for bands.
+struct Recording {
+    inner: MemoryCube,
+    calls: Vec<Vec<usize>>,
+}
+
+impl CubeReader for Recording {
+    fn meta(&self) -> &CubeMeta {
+        self.inner.meta()
+    }
+    fn read_band(&mut self, frame: usize, band: usize) -> eoir::Result<Array2<f32>> {
+        self.calls.push(vec![band]);
+        self.inner.read_band(frame, band)
+    }
+    fn read_bands(&mut self, frame: usize, bands: &[usize]) -> eoir::Result<Vec<Array2<f32>>> {
+        self.calls.push(bands.to_vec());
+        bands
+            .iter()
+            .map(|b| self.inner.read_band(frame, *b))
+            .collect()
+    }
+}
+
+/// The engine reads each contributing band exactly once, in order, through `read_bands`
+/// chunks of at most `BANDS_PER_CHUNK` bands: the planes held at once do not grow with
+/// the band count. Bands outside the sensor response (here 0.5–0.9 µm and beyond 1.75 µm)
+/// are never read.
+#[test]
+fn bands_read_once_in_bounded_chunks_and_inactive_bands_skipped() {
+    let s = sensor();
+    let (r, c) = (3 * s.detector.rows, 3 * s.detector.cols);
+    let wl: Vec<f64> = (0..40).map(|i| 0.5 + 0.04 * i as f64).collect();
+    let data = Array3::from_elem((wl.len(), r, c), 5.0f32);
+    let ifov = s.ifov_rad() / 3.0;
+    let meta = CubeMeta {
+        wavelength_um: wl.clone(),
+        fwhm_um: None,
+        units: RadianceUnits::SpectralPerUm,
+        geometry: Some(Geometry::from_ifov(ifov, ifov, r, c)),
+        rows: r,
+        cols: c,
+    };
+    let cube = Cube::new(data, meta.clone()).unwrap();
+    let imager = Imager::new(&s, &meta, &meta.geometry.unwrap(), DEFAULT_WRAP_TOLERANCE).unwrap();
+    let active = imager.weights().active_bands();
+    assert!(active.len() > BANDS_PER_CHUNK && active.len() < wl.len());
+    let mut reader = Recording {
+        inner: MemoryCube::new(cube),
+        calls: Vec::new(),
+    };
+    let mut seen = Vec::new();
+    imager
+        .mean_electrons(&mut reader, 0, |done, total| seen.push((done, total)))
+        .unwrap();
+    assert!(reader
+        .calls
+        .iter()
+        .all(|c| !c.is_empty() && c.len() <= BANDS_PER_CHUNK));
+    let read: Vec<usize> = reader.calls.concat();
+    assert_eq!(read, active);
+    assert_eq!(seen.last(), Some(&(active.len(), active.len())));
+}
