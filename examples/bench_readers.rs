@@ -9,7 +9,8 @@
 //! (default `1024 32,256`). Environment: `EOIR_BENCH_DIR` (default
 //! `/tmp/eoir-bench-readers`; needs about 4 × SIZE² × Σ BANDS × 6 bytes), `EOIR_BENCH_EXE`
 //! (the `eoir` binary to time; default the one next to this example, so a second build
-//! can be compared). The files are written once and reused; each is read once before
+//! can be compared), `EOIR_BENCH_READERS_ONLY` (set: only the in-process reader table).
+//! The files are written once and reused; each is read once before
 //! timing so every format runs from a warm page cache.
 //!
 //! The sensor is diffraction-limited SWIR (1.02–1.68 µm response, the cube's grid, detector = SIZE/3
@@ -223,7 +224,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut results: Vec<(String, Vec<Measured>)> = Vec::new();
     println!("| input | bands | eoir wall (s) | wall / BSQ wall | peak RSS (MiB) |");
     println!("|---|---|---|---|---|");
-    for &bands in &band_counts {
+    // EOIR_BENCH_READERS_ONLY=1: skip the `eoir run` table.
+    let runs = std::env::var("EOIR_BENCH_READERS_ONLY").is_err();
+    for &bands in band_counts.iter().filter(|_| runs) {
         let inputs = write_inputs(n, bands, &dir)?;
         let mut bsq_wall = f64::NAN;
         for (label, path) in inputs {
@@ -252,7 +255,31 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         }
     }
-    if band_counts.len() > 1 {
+    // The readers alone, in this process: every band read, in chunks of 1 and 16 bands.
+    println!();
+    println!("| input | bands | chunk | read all bands (s) | MB/s of f32 planes |");
+    println!("|---|---|---|---|---|");
+    for &bands in &band_counts {
+        for (label, path) in write_inputs(n, bands, &dir)? {
+            warm(&path);
+            for chunk in [1usize, 16] {
+                let t = Instant::now();
+                let mut reader = eoir::io::open(&path)?;
+                let all: Vec<usize> = (0..reader.meta().bands()).collect();
+                let mut sum = 0.0f64;
+                for c in all.chunks(chunk) {
+                    for plane in reader.read_bands(0, c)? {
+                        sum += f64::from(plane[[0, 0]]);
+                    }
+                }
+                let s = t.elapsed().as_secs_f64();
+                assert!(sum > 0.0, "planes were read");
+                let mb = (n * n * bands * 4) as f64 / 1e6;
+                println!("| {label} | {bands} | {chunk} | {s:.2} | {:.0} |", mb / s);
+            }
+        }
+    }
+    if band_counts.len() > 1 && runs {
         println!();
         println!(
             "| input | RSS({}) / RSS({}) |",

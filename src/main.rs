@@ -6,7 +6,7 @@ use clap::{Parser, Subcommand};
 
 mod cli;
 
-use cli::{characterize, edge_mtf, mtf, nuc, restore, run, sensors};
+use cli::{characterize, edge_mtf, mtf, nuc, restore, run, scene, sensors};
 
 /// eoir — turns synthetic hyperspectral radiance into the imagery a real EO/IR camera records.
 #[derive(Debug, Parser)]
@@ -26,8 +26,8 @@ enum Command {
     Run(run::RunArgs),
     /// Generate the built-in thermal scene and run it through the default MWIR sensor.
     Demo(run::DemoArgs),
-    /// Write a built-in synthetic scene as a radiance cube (any supported format).
-    Scene(run::SceneArgs),
+    /// Write a built-in synthetic scene as a radiance cube sized to a sensor (any format).
+    Scene(scene::SceneArgs),
     /// Convert a DN image (or in-band radiance) to apparent temperature through a sensor.
     Temperature(run::TemperatureArgs),
     /// Print or plot the transfer functions (MTF) of a sensor along the x axis.
@@ -53,7 +53,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Run(args) => run::run(args),
         Command::Demo(args) => run::demo(args),
-        Command::Scene(args) => run::scene(args),
+        Command::Scene(args) => scene::scene(args),
         Command::Temperature(args) => run::temperature(args),
         Command::Mtf(args) => mtf::mtf(args),
         Command::Sensors(args) => sensors::sensors(args),

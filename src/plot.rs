@@ -9,6 +9,7 @@ use std::path::Path;
 use std::sync::Once;
 
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::FontStyle;
 
 use crate::error::{Error, Result};
@@ -255,11 +256,20 @@ pub fn render_histogram(plot: &HistogramPlot<'_>) -> Result<Vec<u8>> {
             chart
                 .draw_series(LineSeries::new(vec![(m.x, 0.0), (m.x, y_hi)], style))
                 .map_err(|e| draw_err(e.to_string()))?;
+            // A label near the right edge goes left of its line, so it is not cut off.
+            let h_pos = if m.x > x_lo + 0.8 * (x_hi - x_lo) {
+                HPos::Right
+            } else {
+                HPos::Left
+            };
             chart
                 .draw_series(std::iter::once(Text::new(
-                    m.label.to_string(),
+                    format!(" {} ", m.label),
                     (m.x, y_hi * 0.97),
-                    (FONT, 14).into_font().color(&RGBColor(160, 30, 30)),
+                    (FONT, 14)
+                        .into_font()
+                        .color(&RGBColor(160, 30, 30))
+                        .pos(Pos::new(h_pos, VPos::Top)),
                 )))
                 .map_err(|e| draw_err(e.to_string()))?;
         }

@@ -9,6 +9,7 @@ pub mod nuc;
 pub mod progress;
 pub mod restore;
 pub mod run;
+pub mod scene;
 pub mod sensors;
 
 /// Parses `H,V` (two numbers).

@@ -75,35 +75,8 @@ pub fn read_image(path: &Path, working_bytes_per_pixel: u64) -> Result<(Array2<f
 /// Reads a one-channel float OpenEXR image.
 fn read_exr_single(path: &Path) -> Result<Array2<f64>> {
     use exr::prelude::{read, FlatSamples, ReadChannels, ReadLayers};
-    use std::io::{Seek, SeekFrom};
     let mut file = std::io::BufReader::new(eoir::io::input::open_regular(path)?);
-    // This reader decodes every channel of the first valid part into memory (f32) and
-    // converts one to f64: budget all parts' data windows × channels × 12 bytes from the
-    // headers before decoding.
-    let meta = exr::meta::MetaData::read_from_buffered(&mut file, false)
-        .map_err(|e| anyhow::anyhow!("{}: cannot read OpenEXR: {e}", path.display()))?;
-    let mut samples: u64 = 0;
-    for h in meta.headers.iter() {
-        let n = eoir::limits::checked_count(
-            &format!("reading {}", path.display()),
-            &[
-                ("columns", h.layer_size.0 as u64),
-                ("rows", h.layer_size.1 as u64),
-                ("channels", h.channels.list.len() as u64),
-            ],
-        )?;
-        samples = samples.saturating_add(n);
-    }
-    eoir::limits::check_bytes(
-        &format!("reading {}", path.display()),
-        &format!(
-            "{} part(s): data windows × channels × 12 bytes",
-            meta.headers.len()
-        ),
-        samples.saturating_mul(12),
-    )?;
-    file.seek(SeekFrom::Start(0))
-        .with_context(|| format!("{}: cannot rewind", path.display()))?;
+    eoir::io::exr::check_exr_image_size(path, &mut file)?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()

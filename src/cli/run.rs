@@ -1,4 +1,4 @@
-//! CLI glue for `eoir run`, `eoir demo` and `eoir scene`.
+//! CLI glue for `eoir run` and `eoir demo`.
 
 use std::path::{Path, PathBuf};
 
@@ -8,6 +8,7 @@ use eoir::calibration::{Calibration, CalibrationOptions};
 use eoir::detector::DetectorInstance;
 use eoir::io::output::ProductSet;
 use eoir::pipeline::{self, RunOptions};
+use eoir::scene::sizing;
 use eoir::scene::synthetic::{self, SceneParams};
 use eoir::scene::Geometry;
 use eoir::sensor::{presets, Sensor, SensorConfig};
@@ -90,8 +91,8 @@ pub struct DemoArgs {
     output: PathBuf,
     #[command(flatten)]
     sensor: SensorArgs,
-    /// Scene oversampling relative to the detector pitch.
-    #[arg(long, default_value_t = 2)]
+    /// Scene samples per detector pixel (integer).
+    #[arg(long, default_value_t = sizing::DEFAULT_OVERSAMPLING)]
     oversampling: usize,
     /// Seed.
     #[arg(long, default_value_t = 1)]
@@ -99,61 +100,6 @@ pub struct DemoArgs {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
-}
-
-/// Arguments of `eoir scene`.
-#[derive(Debug, clap::Args)]
-pub struct SceneArgs {
-    /// Scene kind: thermal, bars, edge, blackbody, ramp.
-    kind: String,
-    /// Output file; the format follows the extension (.hdr, .exr, .npy, .h5).
-    #[arg(short, long)]
-    output: PathBuf,
-    /// Rows before oversampling.
-    #[arg(long, default_value_t = 288)]
-    rows: usize,
-    /// Columns before oversampling.
-    #[arg(long, default_value_t = 384)]
-    cols: usize,
-    /// Oversampling factor k: the cube is (rows·k) × (cols·k).
-    #[arg(long, default_value_t = 1)]
-    oversampling: usize,
-    /// Shortest wavelength, µm.
-    #[arg(long, default_value_t = 3.0)]
-    lo_um: f64,
-    /// Longest wavelength, µm.
-    #[arg(long, default_value_t = 5.5)]
-    hi_um: f64,
-    /// Number of bands.
-    #[arg(long, default_value_t = 51)]
-    bands: usize,
-    /// Horizontal field of view, degrees (vertical follows from rows/cols).
-    #[arg(long, default_value_t = 5.28)]
-    fov_deg: f64,
-    /// Range to the scene, m.
-    #[arg(long)]
-    range_m: Option<f64>,
-    /// Seed for textures.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Night: no reflected sunlight.
-    #[arg(long)]
-    night: bool,
-    /// Temperature for `blackbody`, K.
-    #[arg(long, default_value_t = 300.0)]
-    temperature_k: f64,
-    /// Emissivity for `blackbody`.
-    #[arg(long, default_value_t = 1.0)]
-    emissivity: f64,
-    /// Low temperature (`edge`, `ramp`, `bars` background), K.
-    #[arg(long, default_value_t = 295.0)]
-    t_low_k: f64,
-    /// High temperature (`edge`, `ramp`, `bars` bars), K.
-    #[arg(long, default_value_t = 305.0)]
-    t_high_k: f64,
-    /// Edge angle, degrees.
-    #[arg(long, default_value_t = 5.0)]
-    angle_deg: f64,
 }
 
 /// Runs the input through the sensor, writing the products.
@@ -179,7 +125,10 @@ fn run_file(
         reader.frames().max(options.frames),
         calibration_exposures,
     );
-    options.input_name = input.display().to_string();
+    // A name the caller gave (the demo: where its scene ends up) wins over the path read.
+    if options.input_name == RunOptions::default().input_name {
+        options.input_name = input.display().to_string();
+    }
     let out = pipeline::run(sensor, reader.as_mut(), &options, |done, total| {
         progress.imaging(done, total)
     })?;
@@ -458,31 +407,23 @@ pub fn run(args: RunArgs) -> Result<()> {
     Ok(())
 }
 
-/// `eoir demo`: the thermal scene, sized to cover the sensor at `oversampling` scene samples
-/// per detector pixel and its spectral band, through the sensor.
+/// `eoir demo`: the thermal scene, sized to the sensor by [`sizing::covering`] (as
+/// `eoir scene` does) at `oversampling` scene samples per detector pixel over the sensor's
+/// band, through the sensor.
 pub fn demo(args: DemoArgs) -> Result<()> {
     let sensor = args.sensor.load()?;
-    if args.oversampling == 0 {
-        bail!("--oversampling must be at least 1");
-    }
     let (lo, hi) = sensor.response().support_um();
-    if !(lo.is_finite() && hi.is_finite()) {
-        bail!(
-            "sensor `{}` has an unbounded spectral response; give it a [filter]",
-            sensor.name
-        );
-    }
-    // Bands every ~0.02 µm across the response, at least 24.
-    let bands = (((hi - lo) / 0.02).ceil() as usize + 1).max(24);
+    let wavelength_um = sizing::response_grid_um(lo, hi)
+        .with_context(|| format!("sensor `{}`: the demo scene follows its band", sensor.name))?;
+    let bands = wavelength_um.len();
+    let grid = crate::cli::scene::detector_grid(&sensor);
     let params = SceneParams {
-        rows: sensor.detector.rows,
-        cols: sensor.detector.cols,
-        oversampling: args.oversampling,
-        wavelength_um: SceneParams::uniform_grid(lo, hi, bands)?,
-        fov_x_deg: (sensor.ifov_rad() * sensor.detector.cols as f64).to_degrees(),
+        wavelength_um,
         range_m: Some(1900.0),
         seed: args.seed,
         sun: true,
+        ..sizing::covering(&grid, args.oversampling, sizing::DEFAULT_MARGIN_PX)
+            .with_context(|| format!("sizing the demo scene to sensor `{}`", sensor.name))?
     };
     let set = ProductSet::begin(&args.output)?;
     let scene_path = set.staging_dir().join("scene.hdr");
@@ -493,8 +434,8 @@ pub fn demo(args: DemoArgs) -> Result<()> {
         println!(
             "{} holds the thermal scene, {} x {} x {} bands, {:.3}–{:.3} µm",
             set.final_path(&scene_path).display(),
-            params.cols * params.oversampling,
-            params.rows * params.oversampling,
+            params.cube_cols(),
+            params.cube_rows(),
             bands,
             lo,
             hi
@@ -506,50 +447,13 @@ pub fn demo(args: DemoArgs) -> Result<()> {
         set.staging_dir(),
         RunOptions {
             seed: args.seed,
+            // The report names the scene where it ends up, not its staging place.
+            input_name: set.final_path(&scene_path).display().to_string(),
             ..Default::default()
         },
         &eoir::io::ReadOptions::default(),
         args.quiet,
     )?;
     print_written(&set.commit()?, args.quiet);
-    Ok(())
-}
-
-/// `eoir scene`.
-pub fn scene(args: SceneArgs) -> Result<()> {
-    let params = SceneParams {
-        rows: args.rows,
-        cols: args.cols,
-        oversampling: args.oversampling,
-        wavelength_um: SceneParams::uniform_grid(args.lo_um, args.hi_um, args.bands)?,
-        fov_x_deg: args.fov_deg,
-        range_m: args.range_m,
-        seed: args.seed,
-        sun: !args.night,
-    };
-    let cube = match args.kind.as_str() {
-        "thermal" => synthetic::thermal(&params)?,
-        "bars" => synthetic::bars(&params, args.t_high_k, args.t_low_k)?,
-        "edge" => synthetic::edge(&params, args.t_low_k, args.t_high_k, args.angle_deg)?,
-        "blackbody" => synthetic::blackbody(&params, args.temperature_k, args.emissivity)?,
-        "ramp" => synthetic::ramp(&params, args.t_low_k, args.t_high_k)?,
-        other => bail!(
-            "unknown scene kind `{other}`; choose one of: {}",
-            synthetic::KINDS
-                .iter()
-                .map(|(n, _)| *n)
-                .collect::<Vec<_>>()
-                .join(", ")
-        ),
-    };
-    eoir::io::write_cube(&args.output, &cube)?;
-    println!(
-        "wrote {} ({} scene, {} x {} x {} bands)",
-        args.output.display(),
-        args.kind,
-        cube.meta.cols,
-        cube.meta.rows,
-        cube.meta.bands()
-    );
     Ok(())
 }

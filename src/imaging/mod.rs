@@ -34,6 +34,7 @@ use crate::constants::{PLANCK_H, SPEED_OF_LIGHT_C};
 use crate::error::{Error, Result};
 use crate::io::CubeReader;
 use crate::radiometry;
+use crate::scene::sizing::paraxial_extent_rad;
 use crate::scene::{CubeMeta, Geometry, RadianceUnits};
 use crate::sensor::{Component, FrequencyGrid, Sensor, SystemOtf};
 use crate::spectrum::Spectrum;
@@ -237,8 +238,8 @@ impl AxisSampling {
         axis: &str,
     ) -> Result<Self> {
         let ratio = detector_ifov / scene_ifov;
-        let scene_fov = scene_len as f64 * scene_ifov;
-        let det_fov = detector_len as f64 * detector_ifov;
+        let scene_fov = paraxial_extent_rad(scene_len, scene_ifov);
+        let det_fov = paraxial_extent_rad(detector_len, detector_ifov);
         if det_fov > scene_fov * (1.0 + 1e-9) {
             return Err(Error::param(
                 format!("sensor field of view ({axis})"),

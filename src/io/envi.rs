@@ -1048,6 +1048,9 @@ impl CubeReader for EnviReader {
     /// (or whole-row reads for small frames). Every value is checked as in `read_band`.
     fn read_bands(&mut self, frame: usize, bands: &[usize]) -> Result<Vec<Array2<f32>>> {
         self.check_request(frame, bands)?;
+        if bands.is_empty() {
+            return Ok(Vec::new());
+        }
         let file_bands: Vec<usize> = bands.iter().map(|&b| self.band_map[b]).collect();
         let raw = match self.interleave {
             Interleave::Bsq => file_bands

@@ -432,6 +432,48 @@ fn check_exr_size(path: &Path, headers: &[exr::meta::header::Header], file_len: 
     Ok(())
 }
 
+/// Reads the headers only and checks, before any pixel is decoded, that every part's data
+/// window × channels (as f32, the decoder's flat samples, plus this reader's band planes:
+/// 8 bytes per sample) fits the memory budget of a whole-image decode (a single-channel image read in full, as `eoir restore` does) ([`crate::limits`]); rewinds `file`.
+pub fn check_exr_image_size(
+    path: &Path,
+    file: &mut std::io::BufReader<std::fs::File>,
+) -> Result<()> {
+    use std::io::{Seek, SeekFrom};
+    let meta = exr::meta::MetaData::read_from_buffered(&mut *file, false).map_err(|e| match e {
+        exr::error::Error::Io(io) => Error::io(path, io),
+        other => Error::format(path, format!("not a readable OpenEXR file: {other}")),
+    })?;
+    let mut total: u64 = 0;
+    for h in meta.headers.iter() {
+        let dims = [
+            ("columns", h.layer_size.0 as u64),
+            ("rows", h.layer_size.1 as u64),
+            ("channels", h.channels.list.len() as u64),
+        ];
+        let n = crate::limits::checked_count(&format!("reading {}", path.display()), &dims)?;
+        total = n
+            .checked_mul(8)
+            .and_then(|b| b.checked_add(total))
+            .ok_or_else(|| Error::TooLarge {
+                what: "the OpenEXR image".into(),
+                needed: "more than 2^64 bytes".into(),
+                limit: crate::limits::max_memory_bytes(),
+            })?;
+    }
+    crate::limits::check_bytes(
+        &format!("reading {}", path.display()),
+        &format!(
+            "{} part(s): data windows × channels × 8 bytes",
+            meta.headers.len()
+        ),
+        total,
+    )?;
+    file.seek(SeekFrom::Start(0))
+        .map_err(|e| Error::io(path, e))?;
+    Ok(())
+}
+
 /// Decodes the spectral channels `channels` (indices in part `layer`'s channel list, in
 /// band order) of the full-resolution level into a band-order scratch file, one block at
 /// a time: each decompressed block is split into its channels' line runs, converted to

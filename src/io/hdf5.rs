@@ -173,10 +173,11 @@ impl Hdf5Reader {
             shape[expected_ndim - 2],
             shape[expected_ndim - 1],
         );
+        // One band plane (f32) and its read buffer, before any plane is read.
         crate::limits::check_alloc(
-            &format!("reading one band of {}", path.display()),
+            &format!("reading {}", path.display()),
             &[("rows", rows as u64), ("cols", cols as u64)],
-            4,
+            8,
         )?;
 
         let loc: &Location = &dataset;

@@ -153,17 +153,54 @@ pub fn read_cube(path: &Path) -> Result<Cube> {
     read_cube_frame(r.as_mut(), 0)
 }
 
-/// Writes a cube in the format given by the extension, atomically.
+/// Writes a cube in the format given by the extension as one set ([`write_cube_set`]).
 pub fn write_cube(path: &Path, cube: &Cube) -> Result<()> {
-    match CubeFormat::from_path(path)? {
-        CubeFormat::Envi => envi::write(path, cube),
-        CubeFormat::Exr => exr::write(path, cube),
-        CubeFormat::Npy => npy::write(path, cube),
+    write_cube_set(path, cube).map(|_| ())
+}
+
+/// Writes a cube in the format given by the extension and returns the paths written. The
+/// files of the format (ENVI header and data, NPY array and JSON sidecar) are one
+/// [`output::ProductSet`]: written into a staging directory beside `path` and moved into
+/// place only when all of them were written and every target may be replaced, so an error
+/// or SIGINT/SIGTERM leaves the earlier files exactly as they were, never a mismatched pair.
+pub fn write_cube_set(path: &Path, cube: &Cube) -> Result<Vec<PathBuf>> {
+    let format = CubeFormat::from_path(path)?;
+    let name = path
+        .file_name()
+        .ok_or_else(|| Error::format(path, "names no file to write the cube to"))?;
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let set = output::ProductSet::begin(dir)?;
+    let staged = set.staging_dir().join(name);
+    match format {
+        CubeFormat::Envi => envi::write(&staged, cube),
+        CubeFormat::Exr => exr::write(&staged, cube),
+        CubeFormat::Npy => npy::write(&staged, cube),
         #[cfg(feature = "hdf5")]
-        CubeFormat::Hdf5 => hdf5::write(path, cube),
+        CubeFormat::Hdf5 => hdf5::write(&staged, cube),
         #[cfg(not(feature = "hdf5"))]
         CubeFormat::Hdf5 => Err(hdf5_missing(path)),
     }
+    .map_err(|e| match e {
+        // Name the file the user asked for, not its staging place.
+        Error::Io { path, source } => Error::Io {
+            path: set.final_path(&path),
+            source,
+        },
+        Error::Format { path, message } => Error::Format {
+            path: set.final_path(&path),
+            message,
+        },
+        other => other,
+    })?;
+    // Every file lands beside `path`: name them as the caller spelled `path`.
+    Ok(set
+        .commit()?
+        .iter()
+        .map(|p| path.with_file_name(p.file_name().unwrap_or_default()))
+        .collect())
 }
 
 #[cfg(not(feature = "hdf5"))]

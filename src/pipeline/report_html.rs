@@ -18,9 +18,16 @@ use crate::report::MtfCurves;
 
 /// Bins of the DN histogram.
 pub const HISTOGRAM_BINS: usize = 200;
-/// Percentiles (%) bounding the DN histogram's axis (then widened by 5 % of the span each
-/// side), so a few dead or hot pixels do not squeeze the distribution into one bar.
-pub const HISTOGRAM_RANGE_PERCENT: (f64, f64) = (0.1, 99.9);
+/// Frequencies at which `mtf.png`'s curves are evaluated.
+pub const MTF_POINTS: usize = 300;
+/// Width, CSS px, the page enlarges a small `dn.png` towards, by a whole factor (each
+/// detector pixel a square of equal size; `image-rendering: pixelated`, no smoothing).
+pub const DN_DISPLAY_WIDTH_PX: usize = 768;
+/// The DN histogram's axis runs from the display stretch's black level to its white level
+/// (the `dn.png` percentiles) widened by this fraction of that span on each side (clipped
+/// to 0 and the ADC full scale), so dead and hot pixels (0.5 % in some presets) do not
+/// squeeze the distribution into a third of the plot; the caption counts what lies outside.
+pub const HISTOGRAM_WIDEN: f64 = 0.25;
 
 /// A picture as PNG bytes with the file name it is written under.
 #[derive(Debug, Clone, PartialEq)]
@@ -90,20 +97,23 @@ impl RunPictures {
             _ => None,
         };
         let histogram = dn_histogram(out, &dn_stretch)?;
-        let sensor = &out.sensor;
-        let mtf = match crate::report::mean_wavelength_um(sensor) {
-            Ok(l) => {
-                let curves = MtfCurves::compute(sensor, l, None, 300)?;
+        // The run already found the mean wavelength (an adaptive integral over the
+        // response) and the system MTF at Nyquist; only the curves (MTF_POINTS analytic
+        // evaluations per component) are evaluated here, once for mtf.png and the page.
+        let optics = &out.report.optics;
+        let mtf = match optics.mean_wavelength_um {
+            Some(l) => {
+                let curves = MtfCurves::compute(&out.sensor, l, None, MTF_POINTS)?;
                 Some(Picture {
                     file_name: "mtf.png",
                     png: curves.render_png(&out.sensor.name)?,
                     caption: format!(
                         "transfer functions along x at the response-weighted mean wavelength {l:.3} µm; system MTF at Nyquist {:.3}",
-                        curves.system_at_nyquist
+                        optics.mtf_at_nyquist.unwrap_or(curves.system_at_nyquist)
                     ),
                 })
             }
-            Err(_) => None,
+            None => None,
         };
         Ok(RunPictures {
             dn,
@@ -141,13 +151,12 @@ fn dn_histogram(out: &RunOutput, stretch: &Stretch) -> Result<Picture> {
     let dn = &out.frames[0].dn;
     let mut sorted: Vec<f64> = dn.iter().map(|v| *v as f64).collect();
     sorted.sort_by(f64::total_cmp);
-    let (lo_p, hi_p) = HISTOGRAM_RANGE_PERCENT;
-    let p_lo = display::percentile_sorted(&sorted, lo_p);
-    let p_hi = display::percentile_sorted(&sorted, hi_p);
-    let pad = 0.05 * (p_hi - p_lo).max(10.0);
+    let span = (stretch.hi - stretch.lo).max(10.0);
     let full_scale = out.sensor.detector.max_dn();
-    let lo = (p_lo - pad).max(0.0).floor();
-    let hi = (p_hi + pad).min(full_scale).ceil();
+    let lo = (stretch.lo - HISTOGRAM_WIDEN * span).max(0.0).floor();
+    let hi = (stretch.hi + HISTOGRAM_WIDEN * span).min(full_scale).ceil();
+    let below = sorted.partition_point(|v| *v < lo);
+    let above = sorted.len() - sorted.partition_point(|v| *v <= hi);
     let (edges, counts) = plot::histogram(sorted.iter().copied(), lo, hi, HISTOGRAM_BINS);
     let shown: u64 = counts.iter().sum();
     let mut markers = vec![
@@ -179,10 +188,28 @@ fn dn_histogram(out: &RunOutput, stretch: &Stretch) -> Result<Picture> {
         file_name: "dn_histogram.png",
         png,
         caption: format!(
-            "DN of frame 0 in {HISTOGRAM_BINS} bins from {lo:.0} to {hi:.0} DN ({lo_p}–{hi_p} percentiles widened by 5 %); red lines: display black/white levels{}",
+            "DN of frame 0 in {HISTOGRAM_BINS} bins from {lo:.0} to {hi:.0} DN (the display range widened by {:.0} % each side); {below} pixels below and {above} above it; red lines: display black/white levels{}",
+            HISTOGRAM_WIDEN * 100.0,
             if full_scale <= hi { " and ADC full scale" } else { "" }
         ),
     })
+}
+
+/// Width and height of a PNG from its IHDR chunk (the first chunk, PNG spec §11.2.2);
+/// `None` if `png` does not start like a PNG.
+pub fn png_size(png: &[u8]) -> Option<(usize, usize)> {
+    const SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a];
+    if png.len() < 24 || png[..8] != SIGNATURE || &png[12..16] != b"IHDR" {
+        return None;
+    }
+    let be = |b: &[u8]| u32::from_be_bytes([b[0], b[1], b[2], b[3]]) as usize;
+    Some((be(&png[16..20]), be(&png[20..24])))
+}
+
+/// The whole factor `dn.png` (`width_px` wide) is enlarged by on the page: the largest
+/// that keeps it within [`DN_DISPLAY_WIDTH_PX`], at least 1.
+pub fn dn_display_scale(width_px: usize) -> usize {
+    (DN_DISPLAY_WIDTH_PX / width_px.max(1)).max(1)
 }
 
 /// `text` with the five HTML-special characters escaped.
@@ -248,6 +275,15 @@ pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
             .map(|v| match v {
                 Value::String(t) => t.clone(),
                 Value::Null => "—".to_string(),
+                // Lists (MTF components, blackbody levels) as `a, b, c`, not JSON.
+                Value::Array(items) => items
+                    .iter()
+                    .map(|i| match i {
+                        Value::String(t) => t.clone(),
+                        other => other.to_string(),
+                    })
+                    .collect::<Vec<_>>()
+                    .join(", "),
                 other => other.to_string(),
             })
             .unwrap_or_else(|| "—".to_string())
@@ -546,13 +582,26 @@ pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
     h.push_str("</div>\n");
 
     for p in pictures.all() {
+        // dn.png holds one pixel per detector pixel: enlarge a small one by a whole factor.
+        let (w, ht) = png_size(&p.png).unwrap_or((0, 0));
+        let (scale, class) = if p.file_name == "dn.png" {
+            (dn_display_scale(w), " class=\"pixels\"")
+        } else {
+            (1, "")
+        };
+        let size = if w > 0 && ht > 0 {
+            format!(" width=\"{}\" height=\"{}\"", w * scale, ht * scale)
+        } else {
+            String::new()
+        };
         let _ = writeln!(
             h,
-            "<figure id=\"fig-{}\"><img alt=\"{}\" src=\"data:image/png;base64,{}\"><figcaption><b>{}</b>: {}</figcaption></figure>",
+            "<figure id=\"fig-{}\"><img{class}{size} alt=\"{}\" src=\"data:image/png;base64,{}\"><figcaption><b>{}</b>{}: {}</figcaption></figure>",
             p.file_name.trim_end_matches(".png"),
             p.file_name,
             base64(&p.png),
             p.file_name,
+            if scale > 1 { format!(" (shown {scale}× enlarged)") } else { String::new() },
             escape_html(&p.caption)
         );
     }
@@ -590,7 +639,7 @@ section{background:#fff;border-radius:8px;padding:12px 16px;margin:10px 0;box-sh
 table{border-collapse:collapse;width:100%;font-size:14px}th{text-align:left;font-weight:normal;color:#556;padding:3px 8px 3px 0;width:45%}\
 td{padding:3px 0;font-variant-numeric:tabular-nums}tr+tr{border-top:1px solid #eef}\
 figure{background:#fff;border-radius:8px;padding:12px;margin:12px 0;box-shadow:0 1px 3px rgba(0,0,0,.12)}\
-figure img{max-width:100%;image-rendering:pixelated;display:block;margin:0 auto}\
+figure img{max-width:100%;height:auto;display:block;margin:0 auto}img.pixels{image-rendering:pixelated}\
 figcaption{font-size:13px;color:#445;margin-top:6px}footer{font-size:12px;color:#778;margin:16px 0}";
 
 #[cfg(test)]
@@ -603,6 +652,18 @@ mod tests {
             escape_html("<a href=\"x\">&'"),
             "&lt;a href=&quot;x&quot;&gt;&amp;&#39;"
         );
+    }
+
+    #[test]
+    fn png_size_reads_the_header_and_small_pictures_are_enlarged_by_whole_factors() {
+        let png = display::encode_png(64, 48, 1, &[0u8; 64 * 48]).unwrap();
+        assert_eq!(png_size(&png), Some((64, 48)));
+        assert_eq!(png_size(b"GIF89a not a png at all"), None);
+        assert_eq!(dn_display_scale(64), 12);
+        assert_eq!(dn_display_scale(384), 2);
+        assert_eq!(dn_display_scale(640), 1);
+        assert_eq!(dn_display_scale(1392), 1);
+        assert_eq!(dn_display_scale(0), DN_DISPLAY_WIDTH_PX);
     }
 
     #[test]

@@ -2,10 +2,13 @@
 //!
 //! Arrays are band-major `[band, row, col]` (docs/design.md §3). Angular geometry uses the
 //! paraxial convention of the sensor model: a cube with `cols` samples over a horizontal
-//! field of view `fov_x` samples the scene every `ifov_x = fov_x / cols` radians.
+//! field of view `fov_x` samples the scene every `ifov_x = fov_x / cols` radians
+//! ([`sizing`] holds the one rule for the angular extent of a grid and sizes synthetic
+//! scenes to a detector with it).
 
 use ndarray::Array3;
 
+pub mod sizing;
 pub mod synthetic;
 pub mod units;
 
@@ -200,6 +203,11 @@ pub fn check_radiance_plane(
     wavelength_um: f64,
     plane: ndarray::ArrayView2<f32>,
 ) -> Result<()> {
+    // Fast path: one comparison pair per value (NaN fails both), no index bookkeeping.
+    let physical = |v: &f32| *v >= 0.0 && *v <= f32::MAX;
+    if plane.iter().all(physical) {
+        return Ok(());
+    }
     for ((r, c), v) in plane.indexed_iter() {
         if !v.is_finite() || *v < 0.0 {
             return Err(Error::format(

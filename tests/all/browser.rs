@@ -71,6 +71,11 @@ fn browser_renders_report_html_with_pictures_and_key_numbers() {
     let shown = span_value(&dom, "snr");
     assert!((shown - snr).abs() <= 1e-3 * snr, "SNR {shown} vs {snr}");
     assert_eq!(dom.matches("data:image/png;base64,").count(), 4);
+    // The 64-px-wide dn.png is shown 12× enlarged (768 px), pixels kept square and sharp.
+    assert!(
+        dom.contains("<img class=\"pixels\" width=\"768\" height=\"576\""),
+        "dn.png not enlarged"
+    );
 
     // The screenshot shows a page, not a blank: many grey levels with a real spread, and
     // the inferno colours of the temperature picture somewhere on it.

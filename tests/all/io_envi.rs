@@ -986,6 +986,11 @@ fn scratch_file_is_never_visible_in_the_temporary_directory() {
     };
     let mut r = EnviReader::open(&dir.path().join("p.hdr")).unwrap();
     r.set_bip_direct_frame_bytes(0);
+    // An empty request reads nothing and creates nothing; every band at once reads
+    // directly; a part of the bands goes through the scratch file.
+    assert!(r.read_bands(0, &[]).unwrap().is_empty());
+    assert_eq!(r.read_bands(0, &[0, 1, 2, 3]).unwrap().len(), 4);
+    assert!(!r.uses_scratch_file());
     assert_eq!(
         r.read_bands(0, &[3, 1]).unwrap()[1][[2, 1]],
         truth(1, 2, 1) as f32

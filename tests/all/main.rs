@@ -31,6 +31,7 @@ mod processing;
 mod products;
 mod radiometry;
 mod restore;
+mod scene_cli;
 mod scenes;
 mod sensor_config;
 mod sequence_pieces;

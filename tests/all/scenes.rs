@@ -668,3 +668,96 @@ fn invalid_parameters_are_rejected() {
     );
     assert_eq!(SceneParams::uniform_grid(8.0, 12.0, 1).unwrap(), vec![10.0]);
 }
+
+/// Scene sizing: `covering` gives k scene samples per detector pixel and m pixels of margin
+/// on each side, the vertical extent following from square pixels; the paraxial extent is
+/// n·IFOV, larger than the flat focal plane's 2·atan(n·p/2f) (MultimIR 100 mm: 5.2804° vs
+/// 5.2766°, written out here independently).
+#[test]
+fn covering_scene_has_k_samples_per_pixel_and_the_margin() {
+    use eoir::scene::sizing::{covering, paraxial_extent_rad, DetectorGrid};
+    let grid = DetectorGrid {
+        rows: 288,
+        cols: 384,
+        ifov_rad: 24e-6 / 0.1,
+    };
+    let (fx, fy) = grid.fov_deg();
+    assert!((fx - 5.280_379_04).abs() < 1e-8, "{fx}");
+    assert!((fy - 288.0 * 0.24e-3f64.to_degrees()).abs() < 1e-12, "{fy}");
+    let flat = (2.0 * (384.0 * 24e-6 / (2.0 * 0.1f64)).atan()).to_degrees();
+    assert!((flat - 5.276_646_40).abs() < 1e-8 && flat < fx, "{flat}");
+    assert_eq!(paraxial_extent_rad(7, 0.5), 3.5);
+    for k in [1, 2, 3, 5] {
+        for m in [0, 4, 13] {
+            let p = covering(&grid, k, m).unwrap();
+            assert_eq!(p.cube_cols(), (384 + 2 * m) * k);
+            assert_eq!(p.cube_rows(), (288 + 2 * m) * k);
+            let g = p.geometry();
+            // Scene sample spacing = IFOV / k on both axes, to rounding.
+            let sx = g.ifov_x_rad(p.cube_cols());
+            let sy = g.ifov_y_rad(p.cube_rows());
+            assert!(
+                (sx * k as f64 / grid.ifov_rad - 1.0).abs() < 1e-14,
+                "{k} {m}"
+            );
+            assert!(
+                (sy * k as f64 / grid.ifov_rad - 1.0).abs() < 1e-14,
+                "{k} {m}"
+            );
+            // Margin: the scene exceeds the detector by 2m pixels per axis.
+            let extra_x = (g.fov_x_deg - fx).to_radians() / grid.ifov_rad;
+            let extra_y = (g.fov_y_deg - fy).to_radians() / grid.ifov_rad;
+            assert!((extra_x - 2.0 * m as f64).abs() < 1e-9, "{extra_x}");
+            assert!((extra_y - 2.0 * m as f64).abs() < 1e-9, "{extra_y}");
+        }
+    }
+    for (k, m, bad) in [(0, 4, "oversampling"), (2, 100_000, "margin_px")] {
+        let e = covering(&grid, k, m).unwrap_err().to_string();
+        assert!(e.contains(bad), "{e}");
+    }
+    let e = covering(
+        &DetectorGrid {
+            ifov_rad: f64::NAN,
+            ..grid
+        },
+        2,
+        4,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("IFOV"), "{e}");
+}
+
+/// The wavelength grid for a sensor's band: both ends, even spacing no wider than 0.02 µm
+/// (or 121 bands across a wider band), at least 24 bands; an unbounded band is an error that says what to give.
+#[test]
+fn response_grid_spans_the_band_finely() {
+    use eoir::scene::sizing::{response_grid_um, MAX_GRID_BANDS, MIN_BANDS, SPECTRAL_STEP_UM};
+    for (lo, hi) in [
+        (4.525, 5.225),
+        (0.38, 1.02),
+        (7.0, 10.0),
+        (4.0, 4.1),
+        (4.89, 12.11),
+    ] {
+        let g = response_grid_um(lo, hi).unwrap();
+        assert_eq!(g[0], lo);
+        assert_eq!(*g.last().unwrap(), hi);
+        assert!((MIN_BANDS..=MAX_GRID_BANDS).contains(&g.len()));
+        let step = g[1] - g[0];
+        let widest = SPECTRAL_STEP_UM.max((hi - lo) / (MAX_GRID_BANDS - 1) as f64);
+        assert!(step <= widest + 1e-12, "{lo}-{hi}: {step}");
+        assert!(g.windows(2).all(|w| ((w[1] - w[0]) - step).abs() < 1e-12));
+    }
+    // 4.0–6.0 µm: 100 steps of exactly 0.02 µm; 7–10 µm: capped at 121 bands (0.025 µm).
+    assert_eq!(response_grid_um(4.0, 6.0).unwrap().len(), 101);
+    assert_eq!(response_grid_um(7.0, 10.0).unwrap().len(), MAX_GRID_BANDS);
+    for (lo, hi) in [
+        (0.0, 5.0),
+        (4.0, f64::INFINITY),
+        (5.0, 4.0),
+        (f64::NAN, 1.0),
+    ] {
+        let e = response_grid_um(lo, hi).unwrap_err().to_string();
+        assert!(e.contains("spectral response support"), "{e}");
+    }
+}
