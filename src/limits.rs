@@ -6,18 +6,27 @@
 //! The limit is, by default, three quarters of the physical memory (`MemTotal` in
 //! `/proc/meminfo`), further capped at half of the process's address-space limit
 //! (`RLIMIT_AS`) when one is set; where neither can be read it is 4 GiB. The CLI's
-//! `--max-memory` (library: [`set_max_memory_bytes`]) replaces it for the process.
+//! `--max-memory` (library: [`set_max_memory_bytes`]) replaces it for the process;
+//! [`with_thread_max_memory`] sets a tighter one for the checks made on one thread only
+//! (a harness that feeds hostile files to the readers, without changing the limit other
+//! threads of the process see).
 //!
 //! The checks bound the *largest single structures* a step allocates (a band plane, the
 //! padded FFT frame and its spectra, the detector frames of a run); they are an honest
 //! lower bound of the peak, not an exact accounting of every temporary.
 
+use std::cell::Cell;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::{Error, Result};
 
 /// 0 = not set: use [`default_max_memory_bytes`].
 static MAX_MEMORY_BYTES: AtomicU64 = AtomicU64::new(0);
+
+thread_local! {
+    /// 0 = not set on this thread: use the process limit.
+    static THREAD_MAX_MEMORY_BYTES: Cell<u64> = const { Cell::new(0) };
+}
 
 /// Fallback limit when physical memory cannot be read, bytes (4 GiB).
 pub const FALLBACK_MAX_MEMORY_BYTES: u64 = 4 << 30;
@@ -35,10 +44,35 @@ pub fn set_max_memory_bytes(bytes: u64) -> Result<()> {
     Ok(())
 }
 
-/// The memory limit in force, bytes.
+/// Runs `f` with the memory limit `bytes` (≥ 1 MiB) for the checks made on the calling
+/// thread; other threads keep the process limit, and the previous limit of this thread is
+/// restored afterwards (also when `f` panics).
+pub fn with_thread_max_memory<R>(bytes: u64, f: impl FnOnce() -> R) -> Result<R> {
+    if bytes < (1 << 20) {
+        return Err(Error::param(
+            "max-memory",
+            bytes,
+            "at least 1 MiB (e.g. 512M, 8G)",
+        ));
+    }
+    /// Restores the thread's previous limit when dropped.
+    struct Restore(u64);
+    impl Drop for Restore {
+        fn drop(&mut self) {
+            THREAD_MAX_MEMORY_BYTES.with(|c| c.set(self.0));
+        }
+    }
+    let _restore = Restore(THREAD_MAX_MEMORY_BYTES.with(|c| c.replace(bytes)));
+    Ok(f())
+}
+
+/// The memory limit in force on the calling thread, bytes.
 pub fn max_memory_bytes() -> u64 {
-    match MAX_MEMORY_BYTES.load(Ordering::Relaxed) {
-        0 => default_max_memory_bytes(),
+    match THREAD_MAX_MEMORY_BYTES.with(Cell::get) {
+        0 => match MAX_MEMORY_BYTES.load(Ordering::Relaxed) {
+            0 => default_max_memory_bytes(),
+            b => b,
+        },
         b => b,
     }
 }
@@ -229,6 +263,23 @@ pub fn check_run(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_thread_limit_binds_only_its_thread_and_is_restored() {
+        let process = max_memory_bytes();
+        let inner = with_thread_max_memory(2 << 20, || {
+            let here = max_memory_bytes();
+            let other = std::thread::spawn(max_memory_bytes).join().unwrap();
+            let refused = check_bytes("a test", "3 MiB", 3 << 20).is_err();
+            (here, other, refused)
+        })
+        .unwrap();
+        assert_eq!(inner, (2 << 20, process, true));
+        assert_eq!(max_memory_bytes(), process);
+        let _ = std::panic::catch_unwind(|| with_thread_max_memory(2 << 20, || panic!("boom")));
+        assert_eq!(max_memory_bytes(), process);
+        assert!(with_thread_max_memory(1, || ()).is_err());
+    }
 
     #[test]
     fn meminfo_parses_kibibytes() {

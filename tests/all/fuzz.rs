@@ -11,7 +11,6 @@
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
-use std::sync::Once;
 
 use ndarray::Array3;
 use rand::{RngExt, SeedableRng};
@@ -36,12 +35,11 @@ fn seed() -> u64 {
         .unwrap_or(11)
 }
 
-/// A memory limit for the fuzzed readers in this process (1 GiB), so a mutated header
-/// that claims a large size gets the typed error rather than allocating.
-fn limit_memory() {
-    static ONCE: Once = Once::new();
-    ONCE.call_once(|| eoir::limits::set_max_memory_bytes(1 << 30).unwrap());
-}
+/// The memory limit for the fuzzed readers (1 GiB), so a mutated header that claims a
+/// large size gets the typed error rather than allocating. Set for the fuzzing thread
+/// only: a process-wide limit would make other tests running alongside fail their own
+/// (legitimately larger) budget checks.
+const FUZZ_MAX_MEMORY_BYTES: u64 = 1 << 30;
 
 /// Tokens spliced into inputs: sizes at and beyond every integer width, non-finite and
 /// extreme floats, nesting and separators.
@@ -143,7 +141,13 @@ fn mutate(rng: &mut Xoshiro256PlusPlus, data: &[u8]) -> Vec<u8> {
 /// Runs `cases()` mutations of the seeds through `check` (given the path the mutated
 /// bytes were written to); a panic fails the test with the input printed.
 fn campaign(name: &str, seeds: &[(String, Vec<u8>)], check: impl Fn(&Path, &Path) -> bool) {
-    limit_memory();
+    eoir::limits::with_thread_max_memory(FUZZ_MAX_MEMORY_BYTES, || {
+        campaign_inner(name, seeds, check)
+    })
+    .unwrap();
+}
+
+fn campaign_inner(name: &str, seeds: &[(String, Vec<u8>)], check: impl Fn(&Path, &Path) -> bool) {
     let dir = tempfile::tempdir().unwrap();
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed() ^ fnv_str(name));
     let n = cases();
