@@ -284,6 +284,7 @@ def run(
     first_frame: int = 0,
     range_m: Optional[float] = None,
     units: Optional[str] = None,
+    calibration_temperatures_k=None,
 ) -> RunResult:
     """Runs radiance through a sensor (what ``eoir run`` does, without files).
 
@@ -296,6 +297,9 @@ def run(
     this many times. ``first_frame``: index in the whole sequence of this call's first frame
     (temporal noise is drawn per sequence frame index, so a sequence run in pieces equals
     one run). ``calibrate``: thermal sensors also return radiance and temperature.
+    ``calibration_temperatures_k``: the blackbody levels of the calibration, K (default: the
+    sensor file's ``[calibration]`` section, else 10/50/90 % of the sensor's range, as
+    ``eoir run --calibration-temperatures``).
     """
     wrap = None
     if isinstance(radiance, Cube):
@@ -347,6 +351,9 @@ def run(
         int(first_frame),
         None if range_m is None else float(range_m),
         units or SPECTRAL_UNITS,
+        calibration_temperatures_k=None
+        if calibration_temperatures_k is None
+        else _float_list(calibration_temperatures_k, "calibration_temperatures_k"),
     )
     squeeze = data.ndim == 3 and int(frames) <= 1
     return RunResult(d, squeeze, wrap)
@@ -361,29 +368,38 @@ def mtf(sensor: Sensor, freq_cy_per_mrad, wavelength_um: Optional[float] = None)
     return _eoir.mtf(sensor, f, None if wavelength_um is None else float(wavelength_um))
 
 
-def scene(kind: str = "thermal", **params) -> Cube:
+def scene(kind: str = "thermal", sensor: Optional[Sensor] = None, oversampling: Optional[int] = None,
+          margin_px: int = 4, **params) -> Cube:
     """A built-in synthetic scene (as ``eoir scene KIND``): ``thermal``, ``bars``, ``edge``,
-    ``blackbody``, ``ramp``. Keywords: ``rows, cols, oversampling, lo_um, hi_um, bands,
-    fov_deg, range_m, seed, night, temperature_k, emissivity, t_low_k, t_high_k,
-    angle_deg`` (defaults as the CLI's)."""
+    ``blackbody``, ``ramp``.
+
+    Sized to a sensor (as ``eoir scene --sensor``) when ``sensor`` is given or when none of
+    ``rows, cols, fov_deg`` is: ``oversampling`` (default 2) scene samples per detector
+    pixel over the sensor's field of view plus ``margin_px`` detector pixels each side,
+    wavelengths across its response; the default sensor is ``multimir``, so
+    ``eoir.run(eoir.load_sensor("multimir"), eoir.scene())`` works as it is. Otherwise the
+    explicit keywords ``rows, cols, oversampling, lo_um, hi_um, bands, fov_deg`` (defaults
+    288, 384, 1, 3.0, 5.5, 51, 5.28). Other keywords: ``range_m, seed, night,
+    temperature_k, emissivity, t_low_k, t_high_k, angle_deg``."""
+    explicit = any(k in params for k in ("rows", "cols", "fov_deg"))
+    if sensor is not None and explicit:
+        raise ValueError("invalid parameters: give either `sensor` (sized to it) or `rows`, `cols`, `fov_deg`, not both")
+    if sensor is None and not explicit:
+        sensor = load_sensor("multimir")
+    if sensor is not None:
+        for k in ("lo_um", "hi_um", "bands"):
+            if k in params:
+                raise ValueError(f"invalid parameter `{k}` with `sensor`: the wavelengths follow the sensor's response")
+        g = _eoir.covering_params(sensor, 2 if oversampling is None else int(oversampling), int(margin_px))
+        params.update(rows=g["rows"], cols=g["cols"], oversampling=g["oversampling"], fov_deg=g["fov_deg"],
+                      wavelength_um=list(g["wavelength_um"]))
+    elif oversampling is not None:
+        params["oversampling"] = oversampling
     return Cube._from_dict(_eoir.scene(kind, **params))
 
 
 def demo_scene(sensor: Sensor, oversampling: int = 2, seed: int = 1) -> Cube:
-    """The scene ``eoir demo`` writes for ``sensor``: the thermal scene covering the
-    sensor's field of view at ``oversampling`` samples per pixel, bands every ~0.02 µm
-    (at least 24) across its response, daylight, 1900 m range."""
-    lo, hi = sensor.band_um
-    bands = max(int(math.ceil((hi - lo) / 0.02)) + 1, 24)
-    return scene(
-        "thermal",
-        rows=sensor.rows,
-        cols=sensor.cols,
-        oversampling=oversampling,
-        lo_um=lo,
-        hi_um=hi,
-        bands=bands,
-        fov_deg=math.degrees(sensor.ifov_rad * sensor.cols),
-        range_m=1900.0,
-        seed=seed,
-    )
+    """The scene ``eoir demo`` writes for ``sensor``: the thermal scene sized to the sensor
+    (``oversampling`` samples per pixel, 4 detector pixels of margin each side, bands every
+    ~0.02 µm, at least 24, across its response), daylight, 1900 m range."""
+    return scene("thermal", sensor=sensor, oversampling=oversampling, seed=seed, range_m=1900.0)

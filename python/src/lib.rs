@@ -304,22 +304,19 @@ fn parse_units(units: &str) -> PyResult<RadianceUnits> {
     })
 }
 
-/// Calibration options as `eoir run --nuc-degree N` builds them: degree + 2 (at least 3)
-/// blackbody levels evenly from 280 to 320 K. A degree outside 0 to `MAX_DEGREE` is an
-/// error before the level list is built (`nuc_degree=10**9` would otherwise ask for a
-/// billion levels).
-fn calibration_options(degree: usize) -> PyResult<CalibrationOptions> {
+/// Calibration options as `eoir run --nuc-degree N [--calibration-temperatures ...]`
+/// builds them: `temperatures_k` empty means the sensor file's `[calibration]` section,
+/// else `max(3, degree + 2)` levels from 10 % to 90 % of the sensor's range. A degree
+/// outside 0 to `MAX_DEGREE` is an error before anything is built (`nuc_degree=10**9`).
+fn calibration_options(degree: usize, temperatures_k: Vec<f64>) -> PyResult<CalibrationOptions> {
     let max = eoir::processing::nuc::MAX_DEGREE;
     if degree > max {
         return Err(PyValueError::new_err(format!(
             "invalid parameter `nuc_degree` = {degree}: a NUC degree from 0 to {max}"
         )));
     }
-    let levels = (degree + 2).max(3);
     Ok(CalibrationOptions {
-        temperatures_k: (0..levels)
-            .map(|i| 280.0 + 40.0 * i as f64 / (levels - 1) as f64)
-            .collect(),
+        temperatures_k,
         degree,
         ..Default::default()
     })
@@ -361,7 +358,7 @@ mod num_zero {
 #[pyfunction]
 #[pyo3(signature = (sensor, radiance, wavelength_um, fov_deg, seed=1, frames=1,
     calibrate=true, nuc_degree=1, first_frame=0, range_m=None, units="W m-2 sr-1 um-1",
-    fwhm_um=None, input_name="numpy array"))]
+    fwhm_um=None, input_name="numpy array", calibration_temperatures_k=None))]
 #[allow(clippy::too_many_arguments)]
 fn run<'py>(
     py: Python<'py>,
@@ -378,6 +375,7 @@ fn run<'py>(
     units: &str,
     fwhm_um: Option<Vec<f64>>,
     input_name: &str,
+    calibration_temperatures_k: Option<Vec<f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let units = parse_units(units)?;
     let view = radiance.as_array();
@@ -423,7 +421,9 @@ fn run<'py>(
         first_frame,
         input_name: source.clone(),
         calibration: calibrate
-            .then(|| calibration_options(nuc_degree))
+            .then(|| {
+                calibration_options(nuc_degree, calibration_temperatures_k.unwrap_or_default())
+            })
             .transpose()?,
         ..Default::default()
     };
@@ -619,7 +619,7 @@ fn mtf<'py>(
 #[pyfunction]
 #[pyo3(signature = (kind, rows=288, cols=384, oversampling=1, lo_um=3.0, hi_um=5.5, bands=51,
     fov_deg=5.28, range_m=None, seed=1, night=false, temperature_k=300.0, emissivity=1.0,
-    t_low_k=295.0, t_high_k=305.0, angle_deg=5.0))]
+    t_low_k=295.0, t_high_k=305.0, angle_deg=5.0, wavelength_um=None))]
 #[allow(clippy::too_many_arguments)]
 fn scene<'py>(
     py: Python<'py>,
@@ -639,14 +639,19 @@ fn scene<'py>(
     t_low_k: f64,
     t_high_k: f64,
     angle_deg: f64,
+    wavelength_um: Option<Vec<f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let kind = kind.to_string();
     let cube = detached(py, move || {
+        let wavelength_um = match wavelength_um {
+            Some(w) => w,
+            None => synthetic::SceneParams::uniform_grid(lo_um, hi_um, bands)?,
+        };
         let params = synthetic::SceneParams {
             rows,
             cols,
             oversampling,
-            wavelength_um: synthetic::SceneParams::uniform_grid(lo_um, hi_um, bands)?,
+            wavelength_um,
             fov_x_deg: fov_deg,
             range_m,
             seed,
@@ -676,6 +681,42 @@ fn scene<'py>(
     cube_dict(py, cube.data.into_dyn(), &meta, None, Vec::new())
 }
 
+/// The scene size that covers `sensor` (as `eoir scene --sensor` and `eoir demo` size it,
+/// `eoir::scene::sizing`): `{rows, cols, oversampling, fov_deg, wavelength_um}` with
+/// `oversampling` scene samples per detector pixel, `margin_px` detector pixels of scene
+/// beyond each edge, and the wavelength grid across the sensor's response.
+#[pyfunction]
+#[pyo3(signature = (sensor, oversampling=2, margin_px=4))]
+fn covering_params<'py>(
+    py: Python<'py>,
+    sensor: &PySensor,
+    oversampling: usize,
+    margin_px: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    use eoir::scene::sizing;
+    let s = &sensor.inner;
+    let (params, wavelength_um) = guarded(|| {
+        let (lo, hi) = s.response().support_um();
+        let wavelength_um = sizing::response_grid_um(lo, hi)?;
+        let grid = sizing::DetectorGrid {
+            rows: s.detector.rows,
+            cols: s.detector.cols,
+            ifov_rad: s.ifov_rad(),
+        };
+        Ok((
+            sizing::covering(&grid, oversampling, margin_px)?,
+            wavelength_um,
+        ))
+    })?;
+    let d = PyDict::new(py);
+    d.set_item("rows", params.rows)?;
+    d.set_item("cols", params.cols)?;
+    d.set_item("oversampling", params.oversampling)?;
+    d.set_item("fov_deg", params.fov_x_deg)?;
+    d.set_item("wavelength_um", wavelength_um)?;
+    Ok(d)
+}
+
 /// The native module.
 #[pymodule]
 fn _eoir(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -688,6 +729,7 @@ fn _eoir(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(write_cube, m)?)?;
     m.add_function(wrap_pyfunction!(mtf, m)?)?;
     m.add_function(wrap_pyfunction!(scene, m)?)?;
+    m.add_function(wrap_pyfunction!(covering_params, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -242,3 +242,33 @@ def test_degenerate_inputs_raise_not_crash(small_sensor):
         eoir.load_sensor("multimir", overrides={"detector.rows": 0})
     with pytest.raises(ValueError):
         eoir.mtf(small_sensor, [np.nan])
+
+
+def test_scene_sized_to_a_sensor_runs_as_written(small_sensor):
+    """`eoir.scene(kind, sensor=S)` covers the sensor as `eoir scene --sensor` does: k samples
+    per detector pixel plus 4 pixels of margin each side, and runs with no other argument."""
+    c = eoir.scene("edge", sensor=small_sensor, oversampling=2)
+    assert c.radiance.shape[1:] == ((32 + 8) * 2, (40 + 8) * 2)
+    assert c.fov_deg[0] == pytest.approx(math.degrees(48 * small_sensor.ifov_rad), rel=1e-12)
+    r = eoir.run(small_sensor, c, seed=1, calibrate=False)
+    assert r.dn.shape == (32, 40)
+    assert r.report["sampling"]["ratio_x"] == pytest.approx(2.0, rel=1e-9)
+    assert r.report["sampling"]["ratio_y"] == pytest.approx(2.0, rel=1e-9)
+    # Without a sensor or an explicit size, the scene is sized to the default sensor.
+    d = eoir.scene("blackbody", oversampling=1, margin_px=0, seed=2)
+    full = eoir.load_sensor("multimir")
+    assert d.radiance.shape[1:] == (full.rows, full.cols)
+    assert d.fov_deg[0] == pytest.approx(math.degrees(full.cols * full.ifov_rad), rel=1e-12)
+    with pytest.raises(ValueError, match="not both"):
+        eoir.scene("edge", sensor=small_sensor, rows=10)
+
+
+def test_calibration_temperatures_default_to_the_sensor_range_and_can_be_given(small_sensor, small_scene):
+    auto = eoir.run(small_sensor, small_scene, seed=3)
+    levels = auto.report["calibration"]["temperatures_k"]
+    assert len(levels) == 3 and levels != [280.0, 300.0, 320.0]
+    given = eoir.run(small_sensor, small_scene, seed=3, calibration_temperatures_k=[285.0, 300.0, 315.0])
+    assert given.report["calibration"]["temperatures_k"] == [285.0, 300.0, 315.0]
+    np.testing.assert_array_equal(given.dn, auto.dn)
+    with pytest.raises(ValueError):
+        eoir.run(small_sensor, small_scene, calibration_temperatures_k=[300.0, 300.0])
