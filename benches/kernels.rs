@@ -19,34 +19,7 @@ use eoir::sensor::{Sensor, SensorConfig};
 const N: usize = 1024;
 
 fn imager() -> Imager {
-    let toml = r#"
-name = "bench"
-[optics]
-focal_length_m = 0.1
-f_number = 2.0
-obscuration_ratio = 0.3
-[filter]
-kind = "top_hat"
-lo_um = 1.0
-hi_um = 1.7
-[detector]
-rows = 341
-cols = 341
-pitch_m = 15e-6
-active_width_m = 14e-6
-integration_time_s = 1e-3
-quantum_efficiency = { kind = "ideal_qe", peak = 0.8, cutoff_um = 1.7 }
-[aberration]
-rms_waves = 0.05
-[defocus]
-w020_waves = 0.3
-[jitter]
-sigma_rad = 10e-6
-[turbulence]
-path = "horizontal"
-cn2 = 1e-15
-range_m = 2000
-"#;
+    let toml = include_str!("swir_all_components.toml");
     let c = SensorConfig::from_toml_str(toml, "bench", PathBuf::from("."), &[]).unwrap();
     let s = Sensor::build(&c).unwrap();
     let meta = CubeMeta {

@@ -17,44 +17,7 @@ use eoir::io::MemoryCube;
 use eoir::scene::{Cube, CubeMeta, Geometry, RadianceUnits};
 use eoir::sensor::{Sensor, SensorConfig};
 
-const SENSOR: &str = r#"
-name = "bench-swir"
-[optics]
-focal_length_m = 0.1
-f_number = 2.0
-obscuration_ratio = 0.3
-[filter]
-kind = "top_hat"
-lo_um = 1.0
-hi_um = 1.7
-[detector]
-rows = DET
-cols = DET
-pitch_m = 15e-6
-active_width_m = 14e-6
-integration_time_s = 1e-3
-quantum_efficiency = { kind = "ideal_qe", peak = 0.8, cutoff_um = 1.7 }
-[aberration]
-rms_waves = 0.05
-[defocus]
-w020_waves = 0.3
-[motion]
-smear_rad = 60e-6
-direction_deg = 30
-[jitter]
-sigma_rad = 10e-6
-[turbulence]
-path = "horizontal"
-cn2 = 1e-15
-range_m = 2000
-[aerosol]
-absorption_per_m = 1e-5
-scattering_per_m = 2e-5
-range_m = 2000
-particle_radius_m = 1e-6
-[gaussian]
-sigma_rad = 5e-6
-"#;
+const SENSOR: &str = include_str!("../benches/swir_all_components.toml");
 
 /// CPU seconds (user + system) of this process so far.
 fn cpu_s() -> f64 {
@@ -78,8 +41,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for c in cases {
         let (n, bands) = c.split_once(':').ok_or("cases are SIZE:BANDS")?;
         let (n, bands): (usize, usize) = (n.parse()?, bands.parse()?);
-        let toml = SENSOR.replace("DET", &(n / 3).to_string());
-        let cfg = SensorConfig::from_toml_str(&toml, "bench", ".".into(), &[])?;
+        let det = n / 3;
+        let sizes = [
+            format!("detector.rows={det}"),
+            format!("detector.cols={det}"),
+        ];
+        let cfg = SensorConfig::from_toml_str(SENSOR, "bench", ".".into(), &sizes)?;
         let sensor = Sensor::build(&cfg)?;
         let wl: Vec<f64> = (0..bands)
             .map(|i| 0.95 + 0.8 * i as f64 / (bands - 1) as f64)

@@ -30,47 +30,15 @@ use eoir::sensor::{Sensor, SensorConfig};
 const SCENE_IFOV_RAD: f64 = 50e-6;
 const K: usize = 3;
 
-fn sensor_toml(det: usize) -> String {
-    format!(
-        r#"
-name = "bench-swir"
-[optics]
-focal_length_m = 0.1
-f_number = 2.0
-obscuration_ratio = 0.3
-[filter]
-kind = "top_hat"
-lo_um = 1.0
-hi_um = 1.7
-[detector]
-rows = {det}
-cols = {det}
-pitch_m = 15e-6
-active_width_m = 14e-6
-integration_time_s = 1e-3
-quantum_efficiency = {{ kind = "ideal_qe", peak = 0.8, cutoff_um = 1.7 }}
-[aberration]
-rms_waves = 0.05
-[defocus]
-w020_waves = 0.3
-[motion]
-smear_rad = 60e-6
-direction_deg = 30
-[jitter]
-sigma_rad = 10e-6
-[turbulence]
-path = "horizontal"
-cn2 = 1e-15
-range_m = 2000
-[aerosol]
-absorption_per_m = 1e-5
-scattering_per_m = 2e-5
-range_m = 2000
-particle_radius_m = 1e-6
-[gaussian]
-sigma_rad = 5e-6
-"#
-    )
+/// The all-components SWIR sensor (benches/swir_all_components.toml); the detector size
+/// is set with overrides.
+const SENSOR: &str = include_str!("../benches/swir_all_components.toml");
+
+fn sensor_overrides(det: usize) -> [String; 2] {
+    [
+        format!("detector.rows={det}"),
+        format!("detector.cols={det}"),
+    ]
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -160,7 +128,9 @@ fn run(
     let case = set.dir.join(format!("{n}x{bands}-{}", set.interleave));
     std::fs::create_dir_all(&case)?;
     let sensor_path = case.join("sensor.toml");
-    std::fs::write(&sensor_path, sensor_toml(det))?;
+    let config =
+        SensorConfig::from_toml_str(SENSOR, "bench", PathBuf::from("."), &sensor_overrides(det))?;
+    std::fs::write(&sensor_path, config.to_toml_string()?)?;
     let wl: Vec<f64> = (0..bands)
         .map(|i| 0.95 + 0.8 * i as f64 / (bands - 1) as f64)
         .collect();
@@ -188,7 +158,8 @@ fn run(
         }
     }
     // The engine's padded frame and spectral weights.
-    let config = SensorConfig::from_toml_str(&sensor_toml(det), "bench", PathBuf::from("."), &[])?;
+    let config =
+        SensorConfig::from_toml_str(SENSOR, "bench", PathBuf::from("."), &sensor_overrides(det))?;
     let sensor = Sensor::build(&config)?;
     let imager = Imager::new(
         &sensor,

@@ -13,47 +13,17 @@ use eoir::scene::{Cube, CubeMeta, Geometry, RadianceUnits};
 use eoir::sensor::{Sensor, SensorConfig};
 
 /// SWIR sensor with every transfer-function component on (the benchmark's sensor, small).
-const SWIR: &str = r#"
-name = "swir-all"
-[optics]
-focal_length_m = 0.1
-f_number = 2.0
-obscuration_ratio = 0.3
-[filter]
-kind = "top_hat"
-lo_um = 1.0
-hi_um = 1.7
-[detector]
-rows = 40
-cols = 54
-pitch_m = 15e-6
-active_width_m = 14e-6
-integration_time_s = 1e-3
-quantum_efficiency = { kind = "ideal_qe", peak = 0.8, cutoff_um = 1.7 }
-[aberration]
-rms_waves = 0.05
-[defocus]
-w020_waves = 0.3
-[motion]
-smear_rad = 60e-6
-direction_deg = 30
-[jitter]
-sigma_rad = 10e-6
-[turbulence]
-path = "horizontal"
-cn2 = 1e-15
-range_m = 2000
-[aerosol]
-absorption_per_m = 1e-5
-scattering_per_m = 2e-5
-range_m = 2000
-particle_radius_m = 1e-6
-[gaussian]
-sigma_rad = 5e-6
-"#;
+/// The all-components SWIR sensor of the benchmarks, at a small detector size.
+const SWIR: &str = include_str!("../../benches/swir_all_components.toml");
 
 fn sensor() -> Sensor {
-    let c = SensorConfig::from_toml_str(SWIR, "swir.toml", PathBuf::from("."), &[]).unwrap();
+    let c = SensorConfig::from_toml_str(
+        SWIR,
+        "swir_all_components.toml",
+        PathBuf::from("."),
+        &["detector.rows=40".into(), "detector.cols=54".into()],
+    )
+    .unwrap();
     Sensor::build(&c).unwrap()
 }
 
