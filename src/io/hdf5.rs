@@ -461,7 +461,7 @@ impl super::CubeReader for Hdf5Reader {
     }
 
     /// The same file opened again by path with the same options (an own file id).
-    fn reopen(&self) -> Option<Result<Box<dyn CubeReader + Send>>> {
+    fn reopen(&self) -> Option<Result<Box<dyn super::CubeReader + Send>>> {
         Some(Self::open_with(&self.path, &self.options).map(|r| Box::new(r) as _))
     }
 }
