@@ -59,7 +59,9 @@ pub struct RunReport {
 pub struct ExecutionReport {
     /// Worker threads of the pool the run used.
     pub threads: usize,
-    /// Frames of a sequence imaged at the same time (1 = one after another).
+    /// Frames of a sequence imaged at the same time (1 = one after another). With more
+    /// than one, the stage timings are sums over frames imaged at once: they overlap and
+    /// can add up to more than the total.
     pub frames_in_flight: usize,
     /// What set that number (the request, the thread count, the memory budget, the
     /// reader, the frame count).

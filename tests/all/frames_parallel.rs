@@ -420,3 +420,55 @@ fn hdf5_sequence_in_parallel_equals_one_frame_at_a_time() {
     assert_eq!(two.report.execution.frames_in_flight, 2);
     assert_same(&one, &two, "HDF5");
 }
+
+#[test]
+fn cli_frames_in_flight_changes_no_product_byte() {
+    let (_, frames) = sequence(24, 32, 8, 4);
+    let dir = tempfile::tempdir().unwrap();
+    let input = write_npy_sequence(dir.path(), &frames);
+    let eoir = env!("CARGO_BIN_EXE_eoir");
+    let run = |k: &str| {
+        let out = dir.path().join(format!("out{k}"));
+        let o = std::process::Command::new(eoir)
+            .args([
+                "run",
+                "--quiet",
+                "--sensor",
+                "multimir",
+                "--frames-in-flight",
+                k,
+            ])
+            .args(["--set", "detector.rows=24", "--set", "detector.cols=32"])
+            .arg(&input)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        out
+    };
+    let (one, two) = (run("1"), run("2"));
+    for name in [
+        "frame_0000_dn.tiff",
+        "frame_0003_dn.tiff",
+        "frame_0002_temperature.tiff",
+    ] {
+        let (a, b) = (
+            std::fs::read(one.join(name)).unwrap(),
+            std::fs::read(two.join(name)).unwrap(),
+        );
+        assert!(a == b, "{name} differs");
+    }
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(two.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["execution"]["frames_in_flight"], 2);
+    // Zero is refused by the parser.
+    let o = std::process::Command::new(eoir)
+        .args(["run", "--frames-in-flight", "0", "x.npy", "-o"])
+        .arg(dir.path().join("never"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--frames-in-flight"));
+    assert!(!dir.path().join("never").exists());
+}
