@@ -514,6 +514,8 @@ pub struct EnviReader {
     bip_direct_frame_bytes: u64,
     /// The band-order scratch file of a large BIP frame, once created.
     spill: Option<BandSpill>,
+    /// The reading options it was opened with (for [`CubeReader::reopen`]).
+    options: ReadOptions,
 }
 
 impl EnviReader {
@@ -771,6 +773,7 @@ impl EnviReader {
             warnings,
             bip_direct_frame_bytes: BIP_DIRECT_FRAME_BYTES,
             spill: None,
+            options: options.clone(),
         })
     }
 
@@ -1083,6 +1086,17 @@ impl CubeReader for EnviReader {
 
     fn units_source(&self) -> String {
         self.units_source.clone()
+    }
+
+    /// The same cube opened again from its header with the same options (an own file
+    /// handle, no scratch file yet, the same BIP direct-read size).
+    fn reopen(&self) -> Option<Result<Box<dyn CubeReader + Send>>> {
+        Some(
+            Self::open_with(&self.header_path, &self.options).map(|mut r| {
+                r.bip_direct_frame_bytes = self.bip_direct_frame_bytes;
+                Box::new(r) as _
+            }),
+        )
     }
 }
 

@@ -444,6 +444,8 @@ pub struct NpyReader {
     to_eoir: f64,
     units_source: String,
     warnings: Vec<String>,
+    /// The reading options it was opened with (for [`CubeReader::reopen`]).
+    options: ReadOptions,
 }
 
 impl NpyReader {
@@ -615,6 +617,7 @@ impl NpyReader {
         };
         meta.validate(&side.display().to_string())?;
         Ok(NpyReader {
+            options: options.clone(),
             meta,
             path: path.to_path_buf(),
             file,
@@ -693,6 +696,11 @@ impl CubeReader for NpyReader {
 
     fn units_source(&self) -> String {
         self.units_source.clone()
+    }
+
+    /// The same file opened again by path with the same options: an own file handle.
+    fn reopen(&self) -> Option<Result<Box<dyn CubeReader + Send>>> {
+        Some(Self::open_with(&self.path, &self.options).map(|r| Box::new(r) as _))
     }
 }
 
