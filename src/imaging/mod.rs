@@ -41,7 +41,7 @@ use crate::sensor::{Component, FrequencyGrid, Sensor, SystemOtf};
 use crate::spectrum::Spectrum;
 
 use fft::{FftFloat, FftPrecision, RealFft2, BLOCK_COLS};
-use otf_table::{BandProfile, RadialTables};
+use otf_table::{BandProfile, ChunkProfile, RadialTables, CHUNK_LANES};
 use padding::{FramePad, PadMap};
 
 /// Bands read, row-transformed and accumulated together: the column pass then adds all of
@@ -626,14 +626,23 @@ impl Imager {
                             fft.rows_forward(|r, row| self.pad.row(&view, r, row), rs);
                         });
                     let t2 = Instant::now();
-                    let bands: Vec<(f64, BandProfile)> = chunk
+                    let weights: Vec<f64> = chunk
                         .iter()
-                        .map(|&b| {
-                            let w = self.weights.electrons_per_unit[b];
-                            (w, self.band_profile(self.weights.wavelength_um[b]))
-                        })
+                        .map(|&b| self.weights.electrons_per_unit[b])
                         .collect();
-                    accumulate_chunk(fft, &rs[..chunk.len()], &bands, &self.radial, acc);
+                    let wavelengths: Vec<f64> = chunk
+                        .iter()
+                        .map(|&b| self.weights.wavelength_um[b])
+                        .collect();
+                    let profile = self.chunk_profile(&wavelengths);
+                    accumulate_chunk(
+                        fft,
+                        &rs[..chunk.len()],
+                        &weights,
+                        &profile,
+                        &self.radial,
+                        acc,
+                    );
                     *fft_s = (t2 - t1).as_secs_f64();
                     *otf_s = t2.elapsed().as_secs_f64();
                 });
@@ -701,6 +710,14 @@ impl Imager {
     pub fn band_profile(&self, wavelength_um: f64) -> BandProfile {
         self.tables
             .band_profile(&self.otf, wavelength_um, self.rho_max)
+    }
+
+    /// The chromatic transfer functions of up to [`otf_table::CHUNK_LANES`] bands on one
+    /// common ρ grid, as the accumulation of a chunk uses them
+    /// ([`RadialTables::chunk_profile`]).
+    pub fn chunk_profile(&self, wavelengths_um: &[f64]) -> ChunkProfile {
+        self.tables
+            .chunk_profile(&self.otf, wavelengths_um, self.rho_max)
     }
 
     /// The OTF the accumulation applies at `wavelength_um` on the half-plane frequency grid
@@ -861,23 +878,25 @@ impl Imager {
 /// ([`RealFft2::column_block`], one scratch per band), then one pass over the block adds
 /// all bands, in band order, to each accumulator sample:
 /// `acc += spec_b · w_b · A(f) · P_b(ρ(f))`, with A the achromatic product and P_b band
-/// b's tabulated chromatic profile (no per-band OTF array, no frame-sized transpose; the
+/// b's chromatic profile, all bands interpolated at once from the chunk's common ρ grid
+/// ([`ChunkProfile::eval_all`]; no per-band OTF array, no frame-sized transpose; the
 /// accumulator and the ρ table are loaded once per chunk, not once per band). `acc_t`
 /// and `radial` are in the transposed `[fx][fy]` layout. Every sample is computed by one
 /// worker with the same operations in the same order whatever the thread count, so the
 /// result does not depend on it.
 ///
-/// `rowspecs[c]` is band c's row pass ([`RealFft2::rows_forward`]) and `bands[c]` its
-/// spectral weight and profile ([`Imager::band_profile`]).
+/// `rowspecs[c]` is band c's row pass ([`RealFft2::rows_forward`]), `weights[c]` its
+/// spectral weight and lane c of `profile` ([`Imager::chunk_profile`]) its profile.
 pub fn accumulate_chunk<T: FftFloat>(
     fft: &RealFft2<T>,
     rowspecs: &[Vec<num_complex::Complex<T>>],
-    bands: &[(f64, BandProfile)],
+    weights: &[f64],
+    profile: &ChunkProfile,
     radial: &[[f64; 2]],
     acc_t: &mut [Complex64],
 ) {
     let rows = fft.shape().0;
-    let nb = rowspecs.len().min(bands.len());
+    let nb = rowspecs.len().min(weights.len()).min(profile.bands());
     acc_t
         .par_chunks_mut(BLOCK_COLS * rows)
         .zip(radial.par_chunks(BLOCK_COLS * rows))
@@ -886,20 +905,22 @@ pub fn accumulate_chunk<T: FftFloat>(
             || (0..nb).map(|_| fft.column_scratch()).collect::<Vec<_>>(),
             |scratch, (bi, (a, r))| {
                 let n = a.len() / rows;
-                let blocks: Vec<&[num_complex::Complex<T>]> = rowspecs
+                let blocks: Vec<&[num_complex::Complex<T>]> = rowspecs[..nb]
                     .iter()
                     .zip(scratch.iter_mut())
                     .map(|(rs, sc)| &*fft.column_block(rs, bi * BLOCK_COLS, n, false, sc))
                     .collect();
+                let mut g = [0.0; CHUNK_LANES];
                 for (k, (a, p)) in a.iter_mut().zip(r).enumerate() {
                     if p[1] == 0.0 {
                         continue;
                     }
+                    profile.eval_all(p[0], &mut g);
                     let mut sum = *a;
-                    for (blk, (w, profile)) in blocks.iter().zip(bands) {
+                    for ((blk, w), gc) in blocks.iter().zip(weights).zip(&g) {
                         let s = blk[k];
                         let s = Complex64::new(s.re.widen(), s.im.widen());
-                        sum += s * (w * p[1] * profile.eval(p[0]));
+                        sum += s * (w * p[1] * gc);
                     }
                     *a = sum;
                 }

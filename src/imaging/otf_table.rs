@@ -11,16 +11,19 @@
 //! | aerosol | `v = ρλ/a` | constant beyond v = 1 |
 //!
 //! with ρ = √(fx² + fy²) (cycles/rad). Each component is tabulated ONCE per run
-//! ([`RadialTables::new`]). Per band, the product of the chromatic components is then
-//! tabulated as a function of ρ alone ([`RadialTables::band_profile`], a few thousand
-//! lookups), and the accumulation loop does one interpolation per frequency sample
-//! (ρ precomputed once per frame size).
+//! ([`RadialTables::new`]). Per chunk of up to four bands, the product of the chromatic
+//! components of each band is then tabulated as a function of ρ alone on one common grid
+//! ([`RadialTables::chunk_profile`], a few thousand lookups per band), and the
+//! accumulation loop finds a frequency sample's grid position once and interpolates all
+//! bands of the chunk from two adjacent groups of values (ρ precomputed once per frame
+//! size). A band's jump to 0 at its aperture cutoff is applied exactly, not
+//! interpolated.
 //!
 //! **Accuracy.** Every table is uniform with linear interpolation and is refined (its step
 //! halved) until the interpolation error measured at every interval midpoint against the
 //! function it tabulates is ≤ [`COMPONENT_MIDPOINT_TOLERANCE`] (component tables, measured
 //! against direct evaluation of the component) or ≤ [`PROFILE_MIDPOINT_TOLERANCE`] (per-band
-//! ρ profile, against the product of the component tables). For a function with bounded
+//! ρ profile, for every band of the chunk, against the product of the component tables). For a function with bounded
 //! curvature the midpoint error is the interval's largest; at a kink of a piecewise-linear
 //! function it can be up to 2× smaller than the largest. The total error against direct
 //! evaluation is therefore at most 2·(Σ component + profile) ≈ 2·(4·5e-8 + 1.5e-7) =
@@ -271,47 +274,143 @@ impl RadialTables {
     }
 
     /// The chromatic product at one band as a function of ρ over `[0, rho_max]`
-    /// (cycles/rad): aperture, defocus and turbulence as one table in ρ, refined to
-    /// [`PROFILE_MIDPOINT_TOLERANCE`] against the component tables, 0 beyond the aperture
-    /// cutoff (and beyond the turbulence floor); the aerosol factor, whose core is only
-    /// `a/λ` cycles/rad wide (well below one frequency sample for real particles), is kept
-    /// apart: its own table below `a/λ`, its plateau above.
+    /// (cycles/rad): a one-band [`RadialTables::chunk_profile`].
     pub fn band_profile(&self, otf: &SystemOtf, wavelength_um: f64, rho_max: f64) -> BandProfile {
+        BandProfile {
+            chunk: self.chunk_profile(otf, &[wavelength_um], rho_max),
+        }
+    }
+
+    /// The chromatic products of up to [`CHUNK_LANES`] bands as functions of ρ on ONE
+    /// common uniform grid over `[0, rho_max]` (cycles/rad), interleaved by band, so that
+    /// the accumulation computes the grid position of a frequency sample once and
+    /// interpolates every band of a chunk from two adjacent groups of [`CHUNK_LANES`]
+    /// values. Aperture, defocus and turbulence are one table per band, refined (step
+    /// halved) until every band's midpoint error against the product of the component
+    /// tables is ≤ [`PROFILE_MIDPOINT_TOLERANCE`]; they are 0 beyond the aperture cutoff
+    /// and the turbulence floor by construction of the component tables. The aerosol
+    /// factor, whose core is only `a/λ` cycles/rad wide (well below one frequency sample
+    /// for real particles), is kept apart: its own table below `a/λ`, its plateau above.
+    ///
+    /// # Panics
+    /// If more than [`CHUNK_LANES`] wavelengths are given (a caller error).
+    pub fn chunk_profile(
+        &self,
+        otf: &SystemOtf,
+        wavelengths_um: &[f64],
+        rho_max: f64,
+    ) -> ChunkProfile {
+        assert!(
+            wavelengths_um.len() <= CHUNK_LANES,
+            "chunk_profile: at most {CHUNK_LANES} bands"
+        );
+        let end = rho_max.max(0.0);
+        // Per band: λ, r0(λ), W020(λ), and where the band's transfer function ends (the
+        // aperture cutoff D/λ, or the turbulence floor), if inside the grid.
+        let params: Vec<(f64, Option<f64>, f64, f64)> = wavelengths_um
+            .iter()
+            .map(|&l| {
+                let w020 = if self.defocus.is_some() {
+                    otf.defocus_w020_waves(l).unwrap_or(0.0)
+                } else {
+                    0.0
+                };
+                let r0 = otf.fried_r0_m(l);
+                (l, r0, w020, self.band_end(l, r0, end))
+            })
+            .collect();
+        // Tabulated: each band's function held constant beyond its end (continuous, so
+        // the refinement converges); `eval_all` zeroes it there (the jump at the cutoff
+        // is exact, not interpolated).
+        let f = |rho: f64, lanes: &mut [f64; CHUNK_LANES]| {
+            for (v, (l, r0, w020, e)) in lanes.iter_mut().zip(&params) {
+                *v = self.chromatic_at(rho.min(*e), *l, *r0, *w020);
+            }
+        };
+        let mut n = 256usize;
+        let sample = |n: usize| -> Vec<[f64; CHUNK_LANES]> {
+            let step = end / n as f64;
+            (0..=n)
+                .map(|i| {
+                    let mut v = [0.0; CHUNK_LANES];
+                    f(i as f64 * step, &mut v);
+                    v
+                })
+                .collect()
+        };
+        let mut values = sample(n);
+        loop {
+            let step = end / n as f64;
+            let mids: Vec<[f64; CHUNK_LANES]> = (0..n)
+                .map(|i| {
+                    let mut v = [0.0; CHUNK_LANES];
+                    f((i as f64 + 0.5) * step, &mut v);
+                    v
+                })
+                .collect();
+            let worst = mids
+                .iter()
+                .enumerate()
+                .flat_map(|(i, m)| {
+                    let (a, b) = (values[i], values[i + 1]);
+                    (0..CHUNK_LANES).map(move |c| (m[c] - 0.5 * (a[c] + b[c])).abs())
+                })
+                .fold(0.0, f64::max);
+            if worst <= PROFILE_MIDPOINT_TOLERANCE || 2 * n > MAX_INTERVALS || end <= 0.0 {
+                break;
+            }
+            let mut finer = Vec::with_capacity(2 * n + 1);
+            for i in 0..n {
+                finer.push(values[i]);
+                finer.push(mids[i]);
+            }
+            finer.push(values[n]);
+            values = finer;
+            n *= 2;
+        }
+        let aerosol = wavelengths_um
+            .iter()
+            .map(
+                |&l| match (&self.aerosol, otf.aerosol_particle_radius_m()) {
+                    (Some(t), Some(a_m)) => Some(AerosolFactor {
+                        scale: l * 1e-6 / a_m,
+                        table: t.clone(),
+                    }),
+                    _ => None,
+                },
+            )
+            .collect();
+        let mut cut = [f64::INFINITY; CHUNK_LANES];
+        for (c, p) in cut.iter_mut().zip(&params) {
+            if p.3 < end {
+                *c = p.3;
+            }
+        }
+        ChunkProfile {
+            inv_step: if end > 0.0 { n as f64 / end } else { 0.0 },
+            values,
+            cut,
+            bands: wavelengths_um.len(),
+            aerosol,
+        }
+    }
+
+    /// Where the band at `wavelength_um` ends within `[0, rho_max]`: the aperture cutoff
+    /// D/λ when an aperture term (diffraction, aberration, defocus) is on, the turbulence
+    /// floor λ·u_end/r0, or `rho_max`, whichever is smallest. Beyond it the product is 0
+    /// (except when it is `rho_max`).
+    fn band_end(&self, wavelength_um: f64, r0_m: Option<f64>, rho_max: f64) -> f64 {
         let lambda_m = wavelength_um * 1e-6;
-        let r0 = otf.fried_r0_m(wavelength_um);
-        let w020 = if self.defocus.is_some() {
-            otf.defocus_w020_waves(wavelength_um).unwrap_or(0.0)
-        } else {
-            0.0
-        };
-        let f = |rho: f64| self.chromatic_at(rho, wavelength_um, r0, w020);
         let mut end = rho_max;
-        let mut cut = false;
         if self.aperture.is_some() || self.defocus.is_some() {
-            let cutoff = self.aperture_diameter_m / lambda_m;
-            if cutoff < end {
-                end = cutoff;
-                cut = true;
+            end = end.min(self.aperture_diameter_m / lambda_m);
+        }
+        if let (Some(t), Some(r0)) = (&self.turbulence, r0_m) {
+            if r0.is_finite() {
+                end = end.min(t.end * r0 / lambda_m);
             }
         }
-        if let (Some(t), Some(r0)) = (&self.turbulence, r0) {
-            let floor = t.end * r0 / lambda_m;
-            if r0.is_finite() && floor < end {
-                end = floor;
-                cut = true;
-            }
-        }
-        let end = end.max(0.0);
-        let beyond = if cut { 0.0 } else { f(end) };
-        let table = Table1d::build(f, end, beyond, 256, PROFILE_MIDPOINT_TOLERANCE);
-        let aerosol = match (&self.aerosol, otf.aerosol_particle_radius_m()) {
-            (Some(t), Some(a_m)) => Some(AerosolFactor {
-                scale: lambda_m / a_m,
-                table: t.clone(),
-            }),
-            _ => None,
-        };
-        BandProfile { table, aerosol }
+        end.max(0.0)
     }
 }
 
@@ -324,27 +423,84 @@ struct AerosolFactor {
     table: Table1d,
 }
 
+/// Bands per [`ChunkProfile`]: the engine's bands per chunk (`BANDS_PER_CHUNK`), one
+/// 256-bit vector of f64.
+pub const CHUNK_LANES: usize = 4;
+
+/// The chromatic transfer functions of the bands of one chunk on one common ρ grid (see
+/// [`RadialTables::chunk_profile`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChunkProfile {
+    /// `values[i][c]`: band c at ρ = i·step (unused lanes 0).
+    values: Vec<[f64; CHUNK_LANES]>,
+    /// 1 / step.
+    inv_step: f64,
+    /// Per lane, the ρ beyond which the band's product is 0 (+∞: none inside the grid).
+    cut: [f64; CHUNK_LANES],
+    /// Bands in use (≤ [`CHUNK_LANES`]).
+    bands: usize,
+    /// Per band, the aerosol factor if aerosol is on.
+    aerosol: Vec<Option<AerosolFactor>>,
+}
+
+impl ChunkProfile {
+    /// Number of bands.
+    pub fn bands(&self) -> usize {
+        self.bands
+    }
+
+    /// Number of grid intervals.
+    pub fn intervals(&self) -> usize {
+        self.values.len() - 1
+    }
+
+    /// Every band's chromatic product at radial frequency `rho` ≥ 0 (cycles/rad) into
+    /// `out[..bands]` (lanes beyond are 0): one grid position, one linear interpolation
+    /// per lane (vectorised). Beyond the grid's end the last value holds.
+    #[inline]
+    pub fn eval_all(&self, rho: f64, out: &mut [f64; CHUNK_LANES]) {
+        let t = rho * self.inv_step;
+        // At least 256 intervals (`last ≥ 256`), at most MAX_INTERVALS = 2^22 < 2^32, so
+        // the u32 conversion (cheaper than to usize; saturating) is exact where it matters.
+        let last = self.values.len() - 1;
+        let i = (t as u32 as usize).min(last - 1);
+        let frac = (t - i as f64).min(1.0);
+        let (a, b) = (&self.values[i], &self.values[i + 1]);
+        for c in 0..CHUNK_LANES {
+            let v = a[c] + frac * (b[c] - a[c]);
+            out[c] = if rho > self.cut[c] { 0.0 } else { v };
+        }
+        for (o, aer) in out.iter_mut().zip(&self.aerosol) {
+            if let Some(a) = aer {
+                *o *= a.table.eval(rho * a.scale);
+            }
+        }
+    }
+
+    /// Band `band`'s chromatic product at `rho` (as [`ChunkProfile::eval_all`]).
+    pub fn eval(&self, band: usize, rho: f64) -> f64 {
+        let mut v = [0.0; CHUNK_LANES];
+        self.eval_all(rho, &mut v);
+        v[band]
+    }
+}
+
 /// The chromatic transfer function of one band as a function of the radial frequency ρ
-/// (cycles/rad), from the run's tables (see [`RadialTables::band_profile`]).
+/// (cycles/rad): a one-band [`ChunkProfile`] (see [`RadialTables::band_profile`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct BandProfile {
-    table: Table1d,
-    aerosol: Option<AerosolFactor>,
+    chunk: ChunkProfile,
 }
 
 impl BandProfile {
     /// The chromatic product at radial frequency `rho` ≥ 0, cycles/rad.
     #[inline]
     pub fn eval(&self, rho: f64) -> f64 {
-        let v = self.table.eval(rho);
-        match &self.aerosol {
-            Some(a) => v * a.table.eval(rho * a.scale),
-            None => v,
-        }
+        self.chunk.eval(0, rho)
     }
 
-    /// The ρ table (without the aerosol factor).
-    pub fn table(&self) -> &Table1d {
-        &self.table
+    /// Number of grid intervals of the ρ table.
+    pub fn intervals(&self) -> usize {
+        self.chunk.intervals()
     }
 }

@@ -132,6 +132,41 @@ fn tabulated_profiles_match_direct_evaluation_for_every_component() {
     assert!(worst_overall > 0.0);
 }
 
+/// The engine interpolates the 4 bands of a chunk from ONE common ρ grid
+/// (`RadialTables::chunk_profile`): every band of a chunk matches its direct evaluation to
+/// 1e-6 (for each component case, chunks spanning the range, bands with different cutoffs),
+/// and beyond each band's own aperture cutoff its value is exactly 0.
+#[test]
+fn chunk_profiles_match_direct_evaluation_for_every_band() {
+    let (lo, hi) = (3.0, 5.0);
+    for case in cases() {
+        let s = sensor(&case);
+        let otf = Sensor::build(&s).unwrap().otf().clone();
+        let tables = RadialTables::new(&otf, lo, hi);
+        let rho_max = 1.3 * otf.cutoff_cy_per_rad(lo);
+        for chunk in [[3.0, 3.1, 3.2, 3.3], [3.0, 3.7, 4.4, 5.0]] {
+            let p = tables.chunk_profile(&otf, &chunk, rho_max);
+            assert_eq!(p.bands(), 4);
+            let n = 20_000;
+            for j in 0..=n {
+                let rho = rho_max * ((j as f64 + 0.377_1) / (n as f64 + 1.0));
+                let mut all = [0.0; 4];
+                p.eval_all(rho, &mut all);
+                for (c, lambda) in chunk.iter().enumerate() {
+                    let err = (all[c] - direct_chromatic(&otf, rho, *lambda)).abs();
+                    assert!(
+                        err <= TABLE_TOLERANCE,
+                        "{case:?} chunk {chunk:?} λ {lambda} ρ {rho}: error {err:e}"
+                    );
+                    if rho > otf.cutoff_cy_per_rad(*lambda) {
+                        assert_eq!(all[c], 0.0, "{case:?} λ {lambda} beyond its cutoff");
+                    }
+                }
+            }
+        }
+    }
+}
+
 fn cube(bands: usize, rows: usize, cols: usize, ifov_rad: f64) -> Cube {
     let wl: Vec<f64> = (0..bands)
         .map(|i| 2.9 + 2.3 * i as f64 / (bands - 1) as f64)
