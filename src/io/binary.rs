@@ -115,7 +115,8 @@ pub(crate) fn decode_strided(
 /// Reads `count` contiguous samples starting at byte `offset` and appends them, decoded
 /// as [`decode_into`] decodes them, to `out`: sequential reads of at most
 /// [`READ_BLOCK_BYTES`], so a band-sequential plane costs one read (planes up to 4 MiB)
-/// or a few, and never a second full-size byte buffer next to the decoded plane.
+/// or a few, and never a second full-size byte buffer next to the decoded plane;
+/// native-order unscaled f32 (the common case) is read straight into `out`.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn read_samples(
     file: &mut File,
@@ -127,11 +128,21 @@ pub(crate) fn read_samples(
     scale: Option<(f64, f64)>,
     out: &mut Vec<f32>,
 ) -> Result<()> {
+    file.seek(SeekFrom::Start(offset))
+        .map_err(|e| Error::io(path, e))?;
+    if ty == SampleType::F32 && big_endian == cfg!(target_endian = "big") && scale.is_none() {
+        // Native-order f32 without scaling: the stored bytes are the values, so they are
+        // read straight into the output (one pass over the data instead of a read into a
+        // byte buffer and a decoding pass; `bytemuck` views the f32 slice as bytes).
+        let start = out.len();
+        out.resize(start + count, 0.0);
+        return file
+            .read_exact(bytemuck::cast_slice_mut(&mut out[start..]))
+            .map_err(|e| Error::io(path, e));
+    }
     let size = ty.size();
     let per_read = (READ_BLOCK_BYTES / size).max(1);
     let mut buf = vec![0u8; count.min(per_read) * size];
-    file.seek(SeekFrom::Start(offset))
-        .map_err(|e| Error::io(path, e))?;
     let mut done = 0;
     while done < count {
         let n = (count - done).min(per_read);
