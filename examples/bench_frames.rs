@@ -87,6 +87,9 @@ fn write_sequence(path: &Path, n: usize, bands: usize, frames: usize) -> std::io
     std::fs::write(path.with_extension("json"), side.to_string())
 }
 
+/// One run's figures: (wall s, peak RSS MiB, engine total s, CPU s, frames in flight).
+type Run = (f64, f64, f64, f64, u64);
+
 /// One `eoir run`: (wall s, peak RSS MiB, engine total s, CPU s (user + system), frames in
 /// flight reported).
 fn eoir_run(
@@ -95,7 +98,7 @@ fn eoir_run(
     input: &Path,
     out: &Path,
     in_flight: usize,
-) -> Result<(f64, f64, f64, f64, u64), Box<dyn std::error::Error>> {
+) -> Result<Run, Box<dyn std::error::Error>> {
     let _ = std::fs::remove_dir_all(out);
     let t = Instant::now();
     let o = Command::new("/usr/bin/time")
@@ -185,7 +188,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             many.push(eoir_run(&eoir, &sensor, &input, &out, n_flight)?);
         }
         let k = many.iter().map(|r| r.4).max().unwrap_or(0);
-        type Run = (f64, f64, f64, f64, u64);
         let col = |v: &[Run], i: usize| {
             median(
                 v.iter()
