@@ -644,7 +644,7 @@ impl Imager {
                     .transpose();
                 (read, t.elapsed().as_secs_f64())
             });
-            drop(planes);
+            reader.recycle(planes);
             next = read?;
             stats.read_s += read_s;
             stats.fft_s += fft_s;

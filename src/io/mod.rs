@@ -79,6 +79,12 @@ pub trait CubeReader {
     fn reopen(&self) -> Option<Result<Box<dyn CubeReader + Send>>> {
         None
     }
+    /// Gives planes returned by [`CubeReader::read_bands`] back once they are used, so
+    /// the reader can fill the same buffers with the next bands (no allocation and no
+    /// page faults per band). The default drops them.
+    fn recycle(&mut self, planes: Vec<Array2<f32>>) {
+        drop(planes);
+    }
 }
 
 /// The file formats eoir reads and writes cubes in.
