@@ -4,7 +4,8 @@
 //! and times `eoir run` on it as a child process with `--frames-in-flight 1` (one frame
 //! after another, each frame's transforms on every thread) and `--frames-in-flight N`,
 //! alternating the two back to back, and prints a BENCHMARKS.md table row per case: median
-//! wall, peak RSS (`/usr/bin/time -v`), engine total (`timings_s.total`), the ratio
+//! wall, CPU time (user + system) and peak RSS (`/usr/bin/time -v`), engine total
+//! (`timings_s.total`), the ratio
 //! sequential / parallel, and the load (`/proc/loadavg`) before and after.
 //!
 //! `cargo build --release && cargo run --release --example bench_frames -- [SIZE:BANDS:FRAMES ...]`
@@ -86,14 +87,18 @@ fn write_sequence(path: &Path, n: usize, bands: usize, frames: usize) -> std::io
     std::fs::write(path.with_extension("json"), side.to_string())
 }
 
-/// One `eoir run`: (wall s, peak RSS MiB, engine total s, frames in flight reported).
+/// One run's figures: (wall s, peak RSS MiB, engine total s, CPU s, frames in flight).
+type Run = (f64, f64, f64, f64, u64);
+
+/// One `eoir run`: (wall s, peak RSS MiB, engine total s, CPU s (user + system), frames in
+/// flight reported).
 fn eoir_run(
     eoir: &Path,
     sensor: &Path,
     input: &Path,
     out: &Path,
     in_flight: usize,
-) -> Result<(f64, f64, f64, u64), Box<dyn std::error::Error>> {
+) -> Result<Run, Box<dyn std::error::Error>> {
     let _ = std::fs::remove_dir_all(out);
     let t = Instant::now();
     let o = Command::new("/usr/bin/time")
@@ -116,21 +121,21 @@ fn eoir_run(
     if !o.status.success() {
         return Err(format!("eoir run failed: {err}").into());
     }
-    let rss = err
-        .lines()
-        .find_map(|l| {
-            l.trim()
-                .strip_prefix("Maximum resident set size (kbytes): ")
-        })
-        .and_then(|v| v.trim().parse::<f64>().ok())
-        .map_or(f64::NAN, |kb| kb / 1024.0);
+    let field = |key: &str| {
+        err.lines()
+            .find_map(|l| l.trim().strip_prefix(key))
+            .and_then(|v| v.trim().parse::<f64>().ok())
+            .unwrap_or(f64::NAN)
+    };
+    let rss = field("Maximum resident set size (kbytes): ") / 1024.0;
+    let cpu = field("User time (seconds): ") + field("System time (seconds): ");
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json"))?)?;
     let engine = report["timings_s"]["total"].as_f64().unwrap_or(f64::NAN);
     let k = report["execution"]["frames_in_flight"]
         .as_u64()
         .unwrap_or(0);
-    Ok((wall, rss, engine, k))
+    Ok((wall, rss, engine, cpu, k))
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -152,8 +157,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|p| p.join("eoir"))
         .ok_or("no eoir binary")?;
     println!("{cpus} CPUs, {repeat} repeats per setting (medians), 1 vs {n_flight} frames in flight, alternating");
-    println!("| scene × bands × frames | load before | 1 in flight: wall (s) | engine (s) | peak RSS (MiB) | {n_flight} in flight: wall (s) | engine (s) | peak RSS (MiB) | wall 1 / wall {n_flight} | load after |");
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    println!("| scene × bands × frames | load before | 1 in flight: wall (s) | engine (s) | CPU (s) | peak RSS (MiB) | {n_flight} in flight: wall (s) | engine (s) | CPU (s) | peak RSS (MiB) | wall 1 / wall {n_flight} | load after |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     for c in cases {
         let p: Vec<usize> = c.split(':').map(|v| v.parse()).collect::<Result<_, _>>()?;
         let [n, bands, frames] = p[..] else {
@@ -182,17 +187,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             one.push(eoir_run(&eoir, &sensor, &input, &out, 1)?);
             many.push(eoir_run(&eoir, &sensor, &input, &out, n_flight)?);
         }
-        let k = many.iter().map(|r| r.3).max().unwrap_or(0);
-        let col = |v: &[(f64, f64, f64, u64)], i: usize| {
-            median(v.iter().map(|r| [r.0, r.1, r.2][i]).collect::<Vec<f64>>())
+        let k = many.iter().map(|r| r.4).max().unwrap_or(0);
+        let col = |v: &[Run], i: usize| {
+            median(
+                v.iter()
+                    .map(|r| [r.0, r.1, r.2, r.3][i])
+                    .collect::<Vec<f64>>(),
+            )
         };
         println!(
-            "| {n}² × {bands} × {frames} | {load_before} | {:.2} | {:.2} | {:.0} | {:.2} | {:.2} | {:.0} | {:.2} (k = {k}) | {} |",
+            "| {n}² × {bands} × {frames} | {load_before} | {:.2} | {:.2} | {:.2} | {:.0} | {:.2} | {:.2} | {:.2} | {:.0} | {:.2} (k = {k}) | {} |",
             col(&one, 0),
             col(&one, 2),
+            col(&one, 3),
             col(&one, 1),
             col(&many, 0),
             col(&many, 2),
+            col(&many, 3),
             col(&many, 1),
             col(&one, 0) / col(&many, 0),
             loadavg()
