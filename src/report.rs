@@ -47,8 +47,29 @@ pub struct RunReport {
     pub calibration: Option<CalibrationReport>,
     /// Warnings collected on the way.
     pub warnings: Vec<String>,
+    /// How the run was executed (threads, frames imaged at once); like the timings, it
+    /// does not change any product.
+    pub execution: ExecutionReport,
     /// Wall-clock seconds per stage.
     pub timings_s: Timings,
+}
+
+/// `execution` of the report.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct ExecutionReport {
+    /// Worker threads of the pool the run used.
+    pub threads: usize,
+    /// Frames of a sequence imaged at the same time (1 = one after another). With more
+    /// than one, the stage timings are sums over frames imaged at once: they overlap and
+    /// can add up to more than the total.
+    pub frames_in_flight: usize,
+    /// What set that number (the request, the thread count, the memory budget, the
+    /// reader, the frame count).
+    pub frames_in_flight_limit: String,
+    /// Bytes the run needs with one frame in flight (checked against the memory budget).
+    pub run_bytes: u64,
+    /// Bytes each further frame in flight adds (its accumulator, row spectra and planes).
+    pub frame_bytes_in_flight: u64,
 }
 
 /// `optics` of the report.
@@ -268,6 +289,8 @@ pub struct RunFacts<'a> {
     pub calibration_s: f64,
     /// Seconds of the whole run.
     pub total_s: f64,
+    /// Threads and frames in flight.
+    pub execution: ExecutionReport,
 }
 
 impl RunReport {
@@ -377,6 +400,7 @@ impl RunReport {
             },
             calibration: f.calibration,
             warnings: f.warnings,
+            execution: f.execution,
             timings_s: Timings {
                 read: f.imaging.read_s,
                 forward_fft: f.imaging.fft_s,

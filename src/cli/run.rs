@@ -65,6 +65,11 @@ pub struct RunArgs {
     /// Degree of the per-pixel NUC polynomial for thermal sensors (1 = two-point).
     #[arg(long, default_value_t = 1)]
     nuc_degree: usize,
+    /// Frames of a sequence imaged at the same time, each with its own reader (default:
+    /// one per thread, fewer if the memory budget does not allow them; 1 = one after
+    /// another). The products are the same for every value.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    frames_in_flight: Option<u64>,
     /// For a preset with a `channel` option (3-CCD, three-band): run every channel into
     /// OUTDIR/channel-<value>/ and write a false-colour composite OUTDIR/composite.png.
     #[arg(long)]
@@ -250,6 +255,7 @@ pub fn run(args: RunArgs) -> Result<()> {
             .fft_precision
             .parse()
             .with_context(|| format!("--fft-precision {}", args.fft_precision))?,
+        frames_in_flight: args.frames_in_flight.map(|n| n as usize),
         ..Default::default()
     };
     if !args.composite {

@@ -23,6 +23,7 @@
 
 pub mod fft;
 pub mod otf_table;
+mod padding;
 
 use std::time::Instant;
 
@@ -41,6 +42,7 @@ use crate::spectrum::Spectrum;
 
 use fft::{FftFloat, FftPrecision, RealFft2, BLOCK_COLS};
 use otf_table::{BandProfile, RadialTables};
+use padding::{FramePad, PadMap};
 
 /// Bands read, row-transformed and accumulated together: the column pass then adds all of
 /// them to an accumulator block while it is in cache, and each parallel phase has enough
@@ -321,66 +323,6 @@ impl Sampling {
     }
 }
 
-/// One padded sample as a blend of two image samples: `w·x[a] + (1 − w)·x[b]`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Tap {
-    a: usize,
-    b: usize,
-    w: f64,
-}
-
-/// How the padded FFT frame is filled along one axis.
-///
-/// Inside the image: the image. In the pad (which, the FFT being circular, runs from the
-/// image's last sample round to its first): a raised-cosine cross-fade from the mirror
-/// image of the trailing edge to the mirror image of the leading edge. Next to each edge
-/// the pad is a pure mirror (continuous, as a half-sample-symmetric extension), and the
-/// periodic frame has no jump where the two mirrors meet — a plain mirror pad has one
-/// there, only P samples from the image, which any transfer function that is not small at
-/// the Nyquist frequency rings on.
-#[derive(Debug, Clone, PartialEq)]
-struct PadMap {
-    taps: Vec<Tap>,
-}
-
-impl PadMap {
-    fn new(n: usize, pad_before: usize, padded_len: usize) -> Self {
-        let pad_total = padded_len - n;
-        let taps = (0..padded_len)
-            .map(|c| {
-                let t = c as isize - pad_before as isize;
-                if t >= 0 && (t as usize) < n {
-                    return Tap {
-                        a: t as usize,
-                        b: t as usize,
-                        w: 1.0,
-                    };
-                }
-                // Distance into the pad from the trailing edge, 0 … pad_total − 1.
-                let q = (t - n as isize).rem_euclid(padded_len as isize) as usize;
-                let trailing = mirror_index((n + q) as isize, n);
-                let leading = mirror_index(q as isize - pad_total as isize, n);
-                let w = 0.5
-                    * (1.0 + (std::f64::consts::PI * (q as f64 + 0.5) / pad_total as f64).cos());
-                Tap {
-                    a: trailing,
-                    b: leading,
-                    w,
-                }
-            })
-            .collect();
-        PadMap { taps }
-    }
-}
-
-/// Mirror (half-sample symmetric) index: maps any integer onto `0..n`.
-fn mirror_index(i: isize, n: usize) -> usize {
-    let n = n as isize;
-    let period = 2 * n;
-    let m = i.rem_euclid(period);
-    (if m < n { m } else { period - 1 - m }) as usize
-}
-
 /// The smallest 2,3,5-smooth integer ≥ n (fast FFT sizes).
 pub fn next_fast_len(n: usize) -> usize {
     let mut m = n.max(1);
@@ -487,8 +429,7 @@ pub struct Imager {
     fft32: RealFft2<f32>,
     precision: FftPrecision,
     grid: FrequencyGrid,
-    pad_y: PadMap,
-    pad_x: PadMap,
+    pad: FramePad,
     /// Chromatic components as 1-D tables, built once per run.
     tables: RadialTables,
     /// Per half-plane frequency sample `[ρ (cycles/rad), achromatic product]`, in the
@@ -552,8 +493,10 @@ impl Imager {
         let fft = RealFft2::<f64>::new(sampling.y.padded_len, sampling.x.padded_len);
         let fft32 = RealFft2::<f32>::new(sampling.y.padded_len, sampling.x.padded_len);
         let grid = FrequencyGrid::real_fft(sampling.y.padded_len, sampling.x.padded_len, dy, dx);
-        let pad_y = PadMap::new(meta.rows, sampling.y.pad_before, sampling.y.padded_len);
-        let pad_x = PadMap::new(meta.cols, sampling.x.pad_before, sampling.x.padded_len);
+        let pad = FramePad {
+            y: PadMap::new(meta.rows, sampling.y.pad_before, sampling.y.padded_len),
+            x: PadMap::new(meta.cols, sampling.x.pad_before, sampling.x.padded_len),
+        };
         let achromatic = otf.on_grid(&grid).achromatic().clone();
         let radial: Vec<[f64; 2]> = (0..grid.fx.len())
             .flat_map(|u| (0..grid.fy.len()).map(move |v| (v, u)))
@@ -576,8 +519,7 @@ impl Imager {
             fft32,
             precision: FftPrecision::default(),
             grid,
-            pad_y,
-            pad_x,
+            pad,
             tables,
             radial,
             rho_max,
@@ -681,7 +623,7 @@ impl Imager {
                         .zip(planes.par_iter())
                         .for_each(|(rs, plane)| {
                             let view = plane.view();
-                            fft.rows_forward(|r, row| self.pad_row(&view, r, row), rs);
+                            fft.rows_forward(|r, row| self.pad.row(&view, r, row), rs);
                         });
                     let t2 = Instant::now();
                     let bands: Vec<(f64, BandProfile)> = chunk
@@ -702,7 +644,7 @@ impl Imager {
                     .transpose();
                 (read, t.elapsed().as_secs_f64())
             });
-            drop(planes);
+            reader.recycle(planes);
             next = read?;
             stats.read_s += read_s;
             stats.fft_s += fft_s;
@@ -784,21 +726,9 @@ impl Imager {
             .enumerate()
             .for_each(|(r, mut row)| {
                 if let Some(row) = row.as_slice_mut() {
-                    self.pad_row(&plane, r, row);
+                    self.pad.row(&plane, r, row);
                 }
             });
-    }
-
-    /// Row `r` of the padded frame of a band plane (see `PadMap`), blended in f64 and
-    /// rounded to the transform's type.
-    fn pad_row<T: FftFloat>(&self, plane: &ArrayView2<f32>, r: usize, out: &mut [T]) {
-        let ty = self.pad_y.taps[r];
-        let (ra, rb) = (plane.row(ty.a), plane.row(ty.b));
-        // Blend of the two source rows (equal rows inside the image).
-        let v = |c: usize| ty.w * ra[c] as f64 + (1.0 - ty.w) * rb[c] as f64;
-        for (o, tx) in out.iter_mut().zip(&self.pad_x.taps) {
-            *o = T::nearest_from_f64(tx.w * v(tx.a) + (1.0 - tx.w) * v(tx.b));
-        }
     }
 
     /// Integer ratio: shift by the fractional part of the first pixel position with a
@@ -927,12 +857,15 @@ impl Imager {
 }
 
 /// The fused column pass of a chunk of bands: for every block of [`BLOCK_COLS`] column
-/// frequencies (blocks in parallel), each band's row spectra are column-transformed
-/// ([`RealFft2::column_block`]) and added in band order as
-/// `acc += spec · w · A(f) · P_λ(ρ(f))`, with A the achromatic product and P_λ the band's
-/// tabulated chromatic profile (no per-band OTF array, no frame-sized transpose). `acc_t`
+/// frequencies (blocks in parallel), every band's row spectra are column-transformed
+/// ([`RealFft2::column_block`], one scratch per band), then one pass over the block adds
+/// all bands, in band order, to each accumulator sample:
+/// `acc += spec_b · w_b · A(f) · P_b(ρ(f))`, with A the achromatic product and P_b band
+/// b's tabulated chromatic profile (no per-band OTF array, no frame-sized transpose; the
+/// accumulator and the ρ table are loaded once per chunk, not once per band). `acc_t`
 /// and `radial` are in the transposed `[fx][fy]` layout. Every sample is computed by one
-/// worker in the same way whatever the thread count, so the result does not depend on it.
+/// worker with the same operations in the same order whatever the thread count, so the
+/// result does not depend on it.
 ///
 /// `rowspecs[c]` is band c's row pass ([`RealFft2::rows_forward`]) and `bands[c]` its
 /// spectral weight and profile ([`Imager::band_profile`]).
@@ -944,22 +877,31 @@ pub fn accumulate_chunk<T: FftFloat>(
     acc_t: &mut [Complex64],
 ) {
     let rows = fft.shape().0;
+    let nb = rowspecs.len().min(bands.len());
     acc_t
         .par_chunks_mut(BLOCK_COLS * rows)
         .zip(radial.par_chunks(BLOCK_COLS * rows))
         .enumerate()
         .for_each_init(
-            || fft.column_scratch(),
-            |sc, (bi, (a, r))| {
+            || (0..nb).map(|_| fft.column_scratch()).collect::<Vec<_>>(),
+            |scratch, (bi, (a, r))| {
                 let n = a.len() / rows;
-                for (rs, (w, profile)) in rowspecs.iter().zip(bands) {
-                    let blk = fft.column_block(rs, bi * BLOCK_COLS, n, false, sc);
-                    for ((a, s), p) in a.iter_mut().zip(blk.iter()).zip(r) {
-                        if p[1] != 0.0 {
-                            let s = Complex64::new(s.re.widen(), s.im.widen());
-                            *a += s * (w * p[1] * profile.eval(p[0]));
-                        }
+                let blocks: Vec<&[num_complex::Complex<T>]> = rowspecs
+                    .iter()
+                    .zip(scratch.iter_mut())
+                    .map(|(rs, sc)| &*fft.column_block(rs, bi * BLOCK_COLS, n, false, sc))
+                    .collect();
+                for (k, (a, p)) in a.iter_mut().zip(r).enumerate() {
+                    if p[1] == 0.0 {
+                        continue;
                     }
+                    let mut sum = *a;
+                    for (blk, (w, profile)) in blocks.iter().zip(bands) {
+                        let s = blk[k];
+                        let s = Complex64::new(s.re.widen(), s.im.widen());
+                        sum += s * (w * p[1] * profile.eval(p[0]));
+                    }
+                    *a = sum;
                 }
             },
         );

@@ -107,11 +107,10 @@ impl Table1d {
             return self.beyond;
         }
         let t = x * self.inv_step;
+        // `build` makes at least 8 intervals, so `last ≥ 8`; t ≤ last (+ rounding) < 2^32
+        // (MAX_INTERVALS = 2^22), so the u32 conversion (cheaper than to usize) is exact.
         let last = self.values.len() - 1;
-        let i = (t as usize).min(last.saturating_sub(1));
-        if last == 0 {
-            return self.values[0];
-        }
+        let i = (t as u32 as usize).min(last - 1);
         let (a, b) = (self.values[i], self.values[i + 1]);
         a + (t - i as f64) * (b - a)
     }

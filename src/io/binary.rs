@@ -33,6 +33,45 @@ impl SampleType {
     }
 }
 
+/// Plane buffers handed back through [`super::CubeReader::recycle`], reused by the next
+/// reads: a band plane then costs no allocation and, above all, no page faults (a fresh
+/// 4 MiB buffer is 1,024 first-touch faults, each zeroing a page).
+#[derive(Debug, Default)]
+pub(crate) struct PlanePool {
+    free: Vec<Vec<f32>>,
+}
+
+impl PlanePool {
+    /// At most this many idle buffers are kept: two chunks of the engine's
+    /// `BANDS_PER_CHUNK` (4) planes, the most it has in flight.
+    const MAX_IDLE: usize = 8;
+
+    /// An empty buffer with room for `n` values (a recycled one if there is one).
+    pub(crate) fn take(&mut self, n: usize) -> Vec<f32> {
+        match self.free.pop() {
+            Some(mut v) => {
+                v.clear();
+                v.reserve(n);
+                v
+            }
+            None => Vec::with_capacity(n),
+        }
+    }
+
+    /// Keeps the buffers of `planes` (of `n` values each) for later reads.
+    pub(crate) fn give(&mut self, planes: Vec<ndarray::Array2<f32>>, n: usize) {
+        for p in planes {
+            if self.free.len() >= Self::MAX_IDLE {
+                break;
+            }
+            let (v, _) = p.into_raw_vec_and_offset();
+            if v.capacity() >= n {
+                self.free.push(v);
+            }
+        }
+    }
+}
+
 /// Largest buffer a reader fills with one `read` call, bytes (4 MiB): large enough that
 /// reads run at disk (or page-cache) speed, small enough that it does not show in the
 /// peak memory of a run.
@@ -115,7 +154,8 @@ pub(crate) fn decode_strided(
 /// Reads `count` contiguous samples starting at byte `offset` and appends them, decoded
 /// as [`decode_into`] decodes them, to `out`: sequential reads of at most
 /// [`READ_BLOCK_BYTES`], so a band-sequential plane costs one read (planes up to 4 MiB)
-/// or a few, and never a second full-size byte buffer next to the decoded plane.
+/// or a few, and never a second full-size byte buffer next to the decoded plane;
+/// native-order unscaled f32 (the common case) is read straight into `out`.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn read_samples(
     file: &mut File,
@@ -127,11 +167,21 @@ pub(crate) fn read_samples(
     scale: Option<(f64, f64)>,
     out: &mut Vec<f32>,
 ) -> Result<()> {
+    file.seek(SeekFrom::Start(offset))
+        .map_err(|e| Error::io(path, e))?;
+    if ty == SampleType::F32 && big_endian == cfg!(target_endian = "big") && scale.is_none() {
+        // Native-order f32 without scaling: the stored bytes are the values, so they are
+        // read straight into the output (one pass over the data instead of a read into a
+        // byte buffer and a decoding pass; `bytemuck` views the f32 slice as bytes).
+        let start = out.len();
+        out.resize(start + count, 0.0);
+        return file
+            .read_exact(bytemuck::cast_slice_mut(&mut out[start..]))
+            .map_err(|e| Error::io(path, e));
+    }
     let size = ty.size();
     let per_read = (READ_BLOCK_BYTES / size).max(1);
     let mut buf = vec![0u8; count.min(per_read) * size];
-    file.seek(SeekFrom::Start(offset))
-        .map_err(|e| Error::io(path, e))?;
     let mut done = 0;
     while done < count {
         let n = (count - done).min(per_read);

@@ -75,7 +75,8 @@ use crate::error::{Error, Result};
 use crate::scene::{check_radiance_plane, Cube, CubeMeta};
 
 use super::binary::{
-    check_size, decode_into, decode_strided, read_at, read_samples, SampleType, READ_BLOCK_BYTES,
+    check_size, decode_into, decode_strided, read_at, read_samples, PlanePool, SampleType,
+    READ_BLOCK_BYTES,
 };
 use super::metadata::{
     default_units, order_bands, resolve_geometry, resolve_units, BandOrder, ReadOptions,
@@ -514,6 +515,10 @@ pub struct EnviReader {
     bip_direct_frame_bytes: u64,
     /// The band-order scratch file of a large BIP frame, once created.
     spill: Option<BandSpill>,
+    /// The reading options it was opened with (for [`CubeReader::reopen`]).
+    options: ReadOptions,
+    /// Band-sequential plane buffers handed back by the engine.
+    pool: PlanePool,
 }
 
 impl EnviReader {
@@ -771,6 +776,8 @@ impl EnviReader {
             warnings,
             bip_direct_frame_bytes: BIP_DIRECT_FRAME_BYTES,
             spill: None,
+            pool: PlanePool::default(),
+            options: options.clone(),
         })
     }
 
@@ -831,7 +838,7 @@ impl EnviReader {
     fn read_bsq(&mut self, fb: usize) -> Result<Vec<f32>> {
         let n = self.meta.rows * self.meta.cols;
         let offset = self.header_offset + (fb * n * self.ty.size()) as u64;
-        let mut values = Vec::with_capacity(n);
+        let mut values = self.pool.take(n);
         let scale = self.scale_of(fb);
         read_samples(
             &mut self.file,
@@ -1083,6 +1090,25 @@ impl CubeReader for EnviReader {
 
     fn units_source(&self) -> String {
         self.units_source.clone()
+    }
+
+    /// The same cube opened again from its header with the same options (an own file
+    /// handle, no scratch file yet, the same BIP direct-read size).
+    fn reopen(&self) -> Option<Result<Box<dyn CubeReader + Send>>> {
+        Some(
+            Self::open_with(&self.header_path, &self.options).map(|mut r| {
+                r.bip_direct_frame_bytes = self.bip_direct_frame_bytes;
+                Box::new(r) as _
+            }),
+        )
+    }
+
+    /// Keeps band-sequential plane buffers for the next reads (BIL/BIP planes are
+    /// assembled elsewhere and are simply dropped).
+    fn recycle(&mut self, planes: Vec<Array2<f32>>) {
+        if self.interleave == Interleave::Bsq {
+            self.pool.give(planes, self.meta.rows * self.meta.cols);
+        }
     }
 }
 

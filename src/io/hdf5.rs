@@ -101,6 +101,8 @@ pub struct Hdf5Reader {
     to_eoir: f64,
     units_source: String,
     warnings: Vec<String>,
+    /// The reading options it was opened with (for [`CubeReader::reopen`]).
+    options: ReadOptions,
 }
 
 impl Hdf5Reader {
@@ -323,6 +325,7 @@ impl Hdf5Reader {
             to_eoir: resolved.scale.to_eoir,
             units_source: resolved.source,
             warnings,
+            options: options.clone(),
         })
     }
 
@@ -455,6 +458,11 @@ impl super::CubeReader for Hdf5Reader {
 
     fn units_source(&self) -> String {
         self.units_source.clone()
+    }
+
+    /// The same file opened again by path with the same options (an own file id).
+    fn reopen(&self) -> Option<Result<Box<dyn super::CubeReader + Send>>> {
+        Some(Self::open_with(&self.path, &self.options).map(|r| Box::new(r) as _))
     }
 }
 

@@ -70,6 +70,21 @@ pub trait CubeReader {
     fn units_source(&self) -> String {
         format!("eoir's units: {}", self.meta().units.as_str())
     }
+    /// An independent reader of the same input, with its own file handle and position, so
+    /// that several frames of a sequence can be read at once (the run images frames in
+    /// parallel with one reader each, see `pipeline::frames`). Planes read through it are
+    /// the planes `self` reads. `None` (the default) when the reader cannot be duplicated
+    /// cheaply: the run then images one frame at a time through `self`. A file reader
+    /// opens the file again by its path with the same options.
+    fn reopen(&self) -> Option<Result<Box<dyn CubeReader + Send>>> {
+        None
+    }
+    /// Gives planes returned by [`CubeReader::read_bands`] back once they are used, so
+    /// the reader can fill the same buffers with the next bands (no allocation and no
+    /// page faults per band). The default drops them.
+    fn recycle(&mut self, planes: Vec<Array2<f32>>) {
+        drop(planes);
+    }
 }
 
 /// The file formats eoir reads and writes cubes in.
@@ -278,10 +293,11 @@ pub fn write_all(w: &mut impl Write, bytes: &[u8], path: &Path) -> Result<()> {
 }
 
 /// A cube already in memory, served band by band (for library users who build cubes in
-/// code, and for tests). Planes are checked like a file's.
+/// code, and for tests). Planes are checked like a file's. Clones (and
+/// [`CubeReader::reopen`]) share the frames.
 #[derive(Debug, Clone)]
 pub struct MemoryCube {
-    frames: Vec<Cube>,
+    frames: std::sync::Arc<Vec<Cube>>,
     frame_time_s: Option<f64>,
 }
 
@@ -289,7 +305,7 @@ impl MemoryCube {
     /// One frame.
     pub fn new(cube: Cube) -> Self {
         MemoryCube {
-            frames: vec![cube],
+            frames: std::sync::Arc::new(vec![cube]),
             frame_time_s: None,
         }
     }
@@ -311,7 +327,7 @@ impl MemoryCube {
             ));
         }
         Ok(MemoryCube {
-            frames,
+            frames: std::sync::Arc::new(frames),
             frame_time_s,
         })
     }
@@ -326,6 +342,9 @@ impl CubeReader for MemoryCube {
     }
     fn frame_time_s(&self) -> Option<f64> {
         self.frame_time_s
+    }
+    fn reopen(&self) -> Option<Result<Box<dyn CubeReader + Send>>> {
+        Some(Ok(Box::new(self.clone())))
     }
     fn read_band(&mut self, frame: usize, band: usize) -> Result<Array2<f32>> {
         let cube = self.frames.get(frame).ok_or_else(|| {

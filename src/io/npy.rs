@@ -45,7 +45,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 use crate::scene::{check_radiance_plane, Cube, CubeMeta};
 
-use super::binary::{check_size, read_samples, SampleType};
+use super::binary::{check_size, read_samples, PlanePool, SampleType};
 use super::metadata::{
     default_units, order_bands, resolve_geometry, resolve_units, BandOrder, ReadOptions,
 };
@@ -444,6 +444,10 @@ pub struct NpyReader {
     to_eoir: f64,
     units_source: String,
     warnings: Vec<String>,
+    /// The reading options it was opened with (for [`CubeReader::reopen`]).
+    options: ReadOptions,
+    /// Plane buffers handed back by the engine.
+    pool: PlanePool,
 }
 
 impl NpyReader {
@@ -615,6 +619,8 @@ impl NpyReader {
         };
         meta.validate(&side.display().to_string())?;
         Ok(NpyReader {
+            options: options.clone(),
+            pool: PlanePool::default(),
             meta,
             path: path.to_path_buf(),
             file,
@@ -664,7 +670,7 @@ impl CubeReader for NpyReader {
         let index = (frame * bands + self.band_map[band]) as u64;
         // The plane is contiguous ([frame, band, row, col] in C order): one sequential
         // read (in 4 MiB pieces for larger planes), decoded as it arrives.
-        let mut values = Vec::with_capacity(rows * cols);
+        let mut values = self.pool.take(rows * cols);
         let scale = (self.to_eoir != 1.0).then_some((self.to_eoir, 0.0));
         read_samples(
             &mut self.file,
@@ -693,6 +699,15 @@ impl CubeReader for NpyReader {
 
     fn units_source(&self) -> String {
         self.units_source.clone()
+    }
+
+    /// The same file opened again by path with the same options: an own file handle.
+    fn reopen(&self) -> Option<Result<Box<dyn CubeReader + Send>>> {
+        Some(Self::open_with(&self.path, &self.options).map(|r| Box::new(r) as _))
+    }
+
+    fn recycle(&mut self, planes: Vec<Array2<f32>>) {
+        self.pool.give(planes, self.meta.rows * self.meta.cols);
     }
 }
 

@@ -6,18 +6,20 @@
 use ndarray::Array2;
 
 use crate::error::Result;
-use crate::imaging::{Imager, ImagingStats, Sampling};
+use crate::imaging::fft::FftPrecision;
+use crate::imaging::{Imager, ImagingStats, Sampling, BANDS_PER_CHUNK};
 use crate::io::CubeReader;
 use crate::scene::{CubeMeta, Geometry};
 use crate::sensor::Sensor;
 
 /// The imaging stage of a run: one [`Imager`] per colour channel (one for a sensor
-/// without a colour filter array), reusable across the frames of a sequence.
+/// without a colour filter array), reusable across the frames of a sequence. Imaging a
+/// frame takes `&self`, so several frames can be imaged at once, each from its own reader
+/// (see [`super::frames`]).
 #[derive(Debug)]
 pub struct ImagingStage {
     imagers: Vec<Imager>,
     pattern: Option<crate::cfa::CfaPattern>,
-    stats: ImagingStats,
 }
 
 impl ImagingStage {
@@ -44,7 +46,6 @@ impl ImagingStage {
         Ok(ImagingStage {
             imagers,
             pattern: sensor.cfa.as_ref().map(|c| c.pattern),
-            stats: ImagingStats::default(),
         })
     }
 
@@ -101,36 +102,63 @@ impl ImagingStage {
         self.imagers[0].sampling()
     }
 
-    /// Timings and padded shape accumulated over the frames imaged so far.
-    pub fn stats(&self) -> &ImagingStats {
-        &self.stats
+    /// Bytes one frame in flight holds while it is imaged, beyond what
+    /// [`crate::limits::check_run`] already counts for the run: per colour channel the f64
+    /// accumulator (`[fx][fy]`) and its untransposed copy at the end (2 × 16 B per
+    /// half-spectrum sample), the row spectra of one chunk of [`BANDS_PER_CHUNK`] bands
+    /// (8 B per sample in f32, 16 B in f64), the planes of the chunk being transformed and
+    /// of the one being read (2 × [`BANDS_PER_CHUNK`] scene planes, f32), and the f64
+    /// detector image it hands over (`detector` = (rows, cols)). This is what a second,
+    /// third … frame in flight adds to the run's peak.
+    pub fn frame_bytes_in_flight(&self, meta: &CubeMeta, detector: (usize, usize)) -> u64 {
+        let s = self.sampling();
+        let half = (s.y.padded_len as u64) * (s.x.padded_len as u64 / 2 + 1);
+        let spectrum_bytes = match self.imagers[0].precision() {
+            FftPrecision::F32 => 8,
+            FftPrecision::F64 => 16,
+        };
+        let chunk = BANDS_PER_CHUNK as u64;
+        let planes = 2 * chunk * (meta.rows as u64) * (meta.cols as u64) * 4;
+        let detector_image = (detector.0 as u64) * (detector.1 as u64) * 8;
+        let per_channel = half * (2 * 16 + chunk * spectrum_bytes) + planes + detector_image;
+        per_channel.saturating_mul(self.imagers.len() as u64)
     }
 
-    /// Mean signal electrons of frame `frame` (mosaicked for a CFA sensor).
-    /// `progress(bands done in this frame)` is called after each band.
+    /// Mean signal electrons of frame `frame` (mosaicked for a CFA sensor) and the
+    /// imaging timings of this frame. `progress(bands done in this frame)` is called after
+    /// each chunk of bands. The result depends only on the frame's planes, never on the
+    /// thread doing the work or on other frames imaged at the same time.
     pub fn mean_electrons(
-        &mut self,
+        &self,
         reader: &mut dyn CubeReader,
         frame: usize,
         mut progress: impl FnMut(usize),
-    ) -> Result<Array2<f64>> {
+    ) -> Result<(Array2<f64>, ImagingStats)> {
         let mut planes = Vec::with_capacity(self.imagers.len());
+        let mut stats = ImagingStats::default();
         let mut done = 0;
         for im in &self.imagers {
             let (e, s) = im.mean_electrons(reader, frame, |b, _| progress(done + b))?;
             done += s.bands_used;
-            self.stats.read_s += s.read_s;
-            self.stats.fft_s += s.fft_s;
-            self.stats.otf_s += s.otf_s;
-            self.stats.inverse_s += s.inverse_s;
-            self.stats.bands_used += s.bands_used;
-            self.stats.padded_shape = s.padded_shape;
-            self.stats.precision = s.precision;
+            add_stats(&mut stats, &s);
             planes.push(e);
         }
-        match self.pattern {
-            Some(p) => crate::cfa::mosaic([&planes[0], &planes[1], &planes[2]], p),
-            None => Ok(planes.swap_remove(0)),
-        }
+        let e = match self.pattern {
+            Some(p) => crate::cfa::mosaic([&planes[0], &planes[1], &planes[2]], p)?,
+            None => planes.swap_remove(0),
+        };
+        Ok((e, stats))
     }
+}
+
+/// Adds the timings and band count of `s` to `total` (the padded shape and precision are
+/// the same for every channel and frame of a run).
+pub fn add_stats(total: &mut ImagingStats, s: &ImagingStats) {
+    total.read_s += s.read_s;
+    total.fft_s += s.fft_s;
+    total.otf_s += s.otf_s;
+    total.inverse_s += s.inverse_s;
+    total.bands_used += s.bands_used;
+    total.padded_shape = s.padded_shape;
+    total.precision = s.precision;
 }

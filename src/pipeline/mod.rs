@@ -19,6 +19,7 @@
 pub mod calibrate;
 pub mod colour;
 pub mod expose;
+pub mod frames;
 pub mod image;
 mod output;
 pub mod report_html;
@@ -35,7 +36,6 @@ use crate::report::{RunFacts, RunReport};
 use crate::scene::{CubeMeta, Geometry};
 use crate::sensor::Sensor;
 
-use expose::Exposure;
 use image::ImagingStage;
 
 /// Options of one run.
@@ -65,6 +65,11 @@ pub struct RunOptions {
     /// Precision of the imaging engine's per-band forward FFTs (f32 with f64 accumulation
     /// by default; f64 for the reference path), see [`crate::imaging::fft::FftPrecision`].
     pub fft_precision: crate::imaging::fft::FftPrecision,
+    /// Frames of a sequence imaged at the same time, each with its own reader
+    /// ([`CubeReader::reopen`]): `None` = one per thread of the pool; fewer when the memory
+    /// budget does not allow them, and 1 when the reader cannot be reopened (see
+    /// [`frames`]). The products do not depend on it.
+    pub frames_in_flight: Option<usize>,
 }
 
 impl Default for RunOptions {
@@ -78,6 +83,7 @@ impl Default for RunOptions {
             calibration: Some(CalibrationOptions::default()),
             first_frame: 0,
             fft_precision: Default::default(),
+            frames_in_flight: None,
         }
     }
 }
@@ -161,13 +167,14 @@ fn input_geometry(options: &RunOptions, meta: &CubeMeta) -> Result<Geometry> {
 }
 
 /// Checks the run's largest allocations (padded FFT planes, scene and detector frames,
-/// the frames kept) against the memory budget before any is made.
+/// the frames kept) against the memory budget before any is made; returns the bytes
+/// counted (one frame in flight).
 fn check_budget(
     imaging: &ImagingStage,
     meta: &CubeMeta,
     sensor: &Sensor,
     frames: usize,
-) -> Result<()> {
+) -> Result<u64> {
     let s = imaging.sampling();
     let d = &sensor.config().detector;
     crate::limits::check_run(
@@ -176,7 +183,6 @@ fn check_budget(
         (d.rows, d.cols),
         frames,
     )
-    .map(|_| ())
 }
 
 /// The mean electrons of frame `f`, refused when a count is not finite or beyond the f32
@@ -200,11 +206,12 @@ fn finite_mean<'a>(
     Ok(e)
 }
 
-/// Adds the warnings that appear only while running: the reader's (e.g. `data ignore
-/// value` pixels counted band by band) and the exposure model's (a scene-mean auto gain
+/// Adds the warnings that appear only while running: the readers' (e.g. `data ignore
+/// value` pixels counted band by band; the input reader's first, then those of the
+/// reopened readers of frames in flight) and the exposure model's (a scene-mean auto gain
 /// warns only once the scene is known).
-fn add_late_warnings(reader: &dyn CubeReader, model: &[String], warnings: &mut Vec<String>) {
-    for w in reader.warnings().into_iter().chain(model.iter().cloned()) {
+fn add_late_warnings(readers: Vec<String>, model: &[String], warnings: &mut Vec<String>) {
+    for w in readers.into_iter().chain(model.iter().cloned()) {
         if !warnings.contains(&w) {
             warnings.push(w);
         }
@@ -269,35 +276,27 @@ pub fn run(
     let geometry = input_geometry(options, &meta)?;
     let mut warnings = reader.warnings();
     warnings.extend(sensor.warnings().iter().cloned());
-    let mut imaging = ImagingStage::new(sensor, &meta, &geometry, options)?;
+    let imaging = ImagingStage::new(sensor, &meta, &geometry, options)?;
     warnings.extend(imaging.sampling().warnings.iter().cloned());
     warnings.extend(imaging.unread_bands_warning(&meta));
     warnings.extend(sensor.detector().warnings().iter().cloned());
     let (input_frames, active) = (reader.frames(), imaging.bands_used());
     let n_frames = frame_count(input_frames, options.frames, options.first_frame)?;
-    check_budget(&imaging, &meta, sensor, n_frames)?;
-    let (mut frames, mut detector_s) = (Vec::with_capacity(n_frames), 0.0);
-    let mut mean: Option<Array2<f64>> = None;
-    let mut exposure: Option<Exposure> = None;
-    for f in 0..n_frames {
-        if mean.is_none() || input_frames != 1 {
-            let total = input_frames * active;
-            let e = imaging.mean_electrons(reader, f, |b| progress(f * active + b, total))?;
-            mean = Some(e);
-        }
-        let e = finite_mean(&mean, f, &options.input_name)?;
-        let exposure = match &mut exposure {
-            Some(x) => x,
-            None => exposure.insert(Exposure::new(sensor, e, options.seed)?),
-        };
-        let t0 = Instant::now();
-        let dn = exposure.expose(e, options.first_frame + f as u64)?;
-        detector_s += t0.elapsed().as_secs_f64();
-        let rgb = colour::colour_image(sensor, exposure.model(), &dn);
-        frames.push(FrameProducts::raw(e, dn, rgb));
-    }
-    let exposure = exposure.ok_or_else(|| Error::OutOfRange("no frame was exposed".into()))?;
-    add_late_warnings(reader, exposure.model().warnings(), &mut warnings);
+    let run_bytes = check_budget(&imaging, &meta, sensor, n_frames)?;
+    let job = frames::FrameJob {
+        stage: &imaging,
+        meta: &meta,
+        sensor,
+        options,
+        input_frames,
+        n_frames,
+        run_bytes,
+    };
+    let done = frames::image_and_expose(&job, reader, &mut progress)?;
+    let (mut frames, exposure) = (done.frames, done.exposure);
+    let mut read_warnings = reader.warnings();
+    read_warnings.extend(done.reader_warnings);
+    add_late_warnings(read_warnings, exposure.model().warnings(), &mut warnings);
     let t_cal = Instant::now();
     let calibration = options.calibration.as_ref();
     let outcome = calibrate::calibrate_frames(sensor, &exposure, calibration, &mut frames)?;
@@ -313,15 +312,16 @@ pub fn run(
         frames: n_frames,
         bands_used: active,
         sampling: imaging.sampling(),
-        imaging: imaging.stats(),
+        imaging: &done.stats,
         wrap_tolerance: options.wrap_tolerance,
         first_electrons: &frames[0].electrons_mean,
         first_dn: &frames[0].dn,
         calibration,
         warnings: warnings.clone(),
-        detector_s,
+        detector_s: done.detector_s,
         calibration_s,
         total_s: t_start.elapsed().as_secs_f64(),
+        execution: done.execution,
     });
     report.input.units_source = reader.units_source();
     Ok(RunOutput {

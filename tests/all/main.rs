@@ -11,6 +11,7 @@ mod cli;
 mod detector;
 mod edge_mtf;
 mod edge_mtf_cli;
+mod frames_parallel;
 mod fuzz;
 mod golden;
 mod hostile;

@@ -191,3 +191,42 @@ fn bands_read_once_in_bounded_chunks_and_inactive_bands_skipped() {
     assert_eq!(read, active);
     assert_eq!(seen.last(), Some(&(active.len(), active.len())));
 }
+
+/// Plane buffers given back to a file reader (`CubeReader::recycle`) are filled again by
+/// the next reads: the same buffers (no fresh allocation), holding exactly the values a
+/// fresh reader reads, for ENVI BSQ and NPY.
+#[test]
+fn recycled_plane_buffers_are_reused_and_read_correctly() {
+    let cube = texture(8, 24, 17, 50e-6);
+    let dir = tempfile::tempdir().unwrap();
+    let envi = dir.path().join("c.hdr");
+    let npy = dir.path().join("c.npy");
+    eoir::io::envi::write(&envi, &cube).unwrap();
+    eoir::io::npy::write(&npy, &cube).unwrap();
+    let open = |p: &PathBuf| -> Box<dyn CubeReader> {
+        if p.extension().unwrap() == "hdr" {
+            Box::new(eoir::io::envi::EnviReader::open(p).unwrap())
+        } else {
+            Box::new(eoir::io::npy::NpyReader::open(p).unwrap())
+        }
+    };
+    for path in [&envi, &npy] {
+        let mut r = open(path);
+        let first = r.read_bands(0, &[0, 1, 2, 3]).unwrap();
+        let ptrs: Vec<*const f32> = first.iter().map(|p| p.as_ptr()).collect();
+        r.recycle(first);
+        let second = r.read_bands(0, &[4, 5, 6, 7]).unwrap();
+        let mut fresh = open(path);
+        let want = fresh.read_bands(0, &[4, 5, 6, 7]).unwrap();
+        for (k, (got, want)) in second.iter().zip(&want).enumerate() {
+            assert_eq!(got, want, "{} band {}", path.display(), 4 + k);
+            assert_eq!(got, &cube.data.index_axis(ndarray::Axis(0), 4 + k));
+            assert!(
+                ptrs.contains(&got.as_ptr()),
+                "{}: band {} was not read into a recycled buffer",
+                path.display(),
+                4 + k
+            );
+        }
+    }
+}
