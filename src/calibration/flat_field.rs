@@ -34,11 +34,10 @@
 //! and independent of the number of threads, and independent of the detector's own temporal
 //! streams.
 
-use ndarray::{Array2, ArrayView1};
+use ndarray::{Array2, Zip};
 use rand::{RngExt, SeedableRng};
 use rand_distr::StandardNormal;
 use rand_xoshiro::Xoshiro256PlusPlus;
-use rayon::prelude::*;
 
 use crate::detector::{apply_nonlinearity, mean_total_e, Defect, DetectorInstance};
 use crate::error::{Error, Result};
@@ -211,40 +210,38 @@ pub fn average(
     }
     let key = mix(mix(mix(instance.seed()) ^ STREAM) ^ level_key);
     let max = m.max_dn();
-    let row = |i: usize| -> Vec<(f64, bool)> {
-        let mut rng = Xoshiro256PlusPlus::seed_from_u64(mix(key ^ i as u64));
-        let signal: ArrayView1<f64> = mean_e.row(i);
-        (0..cols)
-            .map(|j| {
+    let mut avg = Array2::zeros((rows, cols));
+    let mut clipped = Array2::from_elem((rows, cols), false);
+    Zip::indexed(avg.rows_mut())
+        .and(clipped.rows_mut())
+        .par_for_each(|i, mut avg, mut clipped| {
+            let signal = mean_e.row(i);
+            let (gain, offset) = (maps.gain.row(i), maps.offset_e.row(i));
+            let (quadratic, defects) = (maps.quadratic.row(i), maps.defects.row(i));
+            let mut rng = Xoshiro256PlusPlus::seed_from_u64(mix(key ^ i as u64));
+            for j in 0..cols {
                 let z: f64 = rng.sample(StandardNormal);
-                let fixed = match Defect::from_code(maps.defects[[i, j]] as u16) {
+                let fixed = match Defect::from_code(defects[j] as u16) {
                     Some(Defect::Dead) => Some(0.0),
                     Some(Defect::Hot) => Some(max),
                     Some(Defect::Stuck) => maps.stuck_dn.as_ref().map(|s| s[[i, j]] as f64),
                     _ => None,
                 };
                 if let Some(v) = fixed {
-                    return (v, v <= 0.0 || v >= max);
+                    avg[j] = v;
+                    clipped[j] = v <= 0.0 || v >= max;
+                    continue;
                 }
-                let maps_ij = (
-                    maps.gain[[i, j]],
-                    maps.offset_e[[i, j]],
-                    maps.quadratic[[i, j]],
+                let (mean, var, clip) = pixel_moments(
+                    instance,
+                    signal[j],
+                    (gain[j], offset[j], quadratic[j]),
+                    frames,
                 );
-                let (mean, var, clipped) = pixel_moments(instance, signal[j], maps_ij, frames);
-                (mean + (var / frames as f64).sqrt() * z, clipped)
-            })
-            .collect()
-    };
-    let out: Vec<Vec<(f64, bool)>> = (0..rows).into_par_iter().map(row).collect();
-    let mut avg = Array2::zeros((rows, cols));
-    let mut clipped = Array2::from_elem((rows, cols), false);
-    for (i, r) in out.into_iter().enumerate() {
-        for (j, (v, c)) in r.into_iter().enumerate() {
-            avg[[i, j]] = v;
-            clipped[[i, j]] = c;
-        }
-    }
+                avg[j] = mean + (var / frames as f64).sqrt() * z;
+                clipped[j] = clip;
+            }
+        });
     Ok((avg, clipped))
 }
 

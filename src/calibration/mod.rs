@@ -46,26 +46,27 @@
 //! 2^bits − 1) are clipped measurements and also become NaN (unless the pixel is a flagged
 //! defect, which is replaced), so a saturated pixel never yields a wrong temperature.
 
+pub mod band_quadrature;
 pub mod flat_field;
 pub mod instance;
 pub mod levels;
+pub mod netd_measurement;
 
 use std::sync::Arc;
 
-use ndarray::{Array2, Array3, ArrayView2, Axis, Zip};
+use ndarray::{Array2, ArrayView2, Zip};
 
-use crate::constants::{BOLTZMANN_K, PLANCK_H, SPEED_OF_LIGHT_C};
 use crate::detector::{DetectorInstance, DetectorModel};
 use crate::error::{require_positive, Error, Result};
 use crate::processing::bad_pixels::{self, BadPixelCriteria, BadPixelMap};
 use crate::processing::netd;
 use crate::processing::nuc::{self, NucCoefficients};
-use crate::processing::temperature::HermiteTable;
-use crate::radiometry::{
-    band_radiance, integrate, planck_spectral_radiance, CameraEquation, TemperatureLut,
-};
+use crate::processing::temperature::{HermiteTable, InverseTable};
+use crate::radiometry::{band_radiance, CameraEquation, TemperatureLut};
 use crate::sensor::Sensor;
 use crate::spectrum::Spectrum;
+use band_quadrature::{BandQuadrature, C2_M_K};
+pub use netd_measurement::{measured_netd, measured_netd_sampled, NetdSample};
 
 /// First frame index of the calibration frames of [`FrameRoute::Exposed`]: level l, frame
 /// i uses `CALIBRATION_FRAME_BASE + l·M + i` (independent temporal noise from scene frames,
@@ -82,6 +83,10 @@ pub const NETD_FRAME_BASE: u64 = 3_000_000;
 /// searched: exact for piecewise-linear curves (top-hats, tables; the maximum lies on a
 /// breakpoint or a flat top), ~1e-6 relative for a Gaussian (grid step ≈ 0.004 σ).
 const PEAK_SEARCH_POINTS: usize = 4096;
+
+/// Largest difference (K) between the fast image inversion ([`InverseTable`]) and the exact
+/// inversion of the DN table at any interval midpoint of the inverse table.
+pub const INVERSE_TOLERANCE_K: f64 = 1e-7;
 
 /// Temperature step (K) used to test that DN* still rises at a temperature.
 const RISE_STEP_K: f64 = 0.01;
@@ -202,26 +207,16 @@ const RESPONSE_TABLE_WIEN_STEP: f64 = 0.05;
 /// tabulated as if it started there; 0.5 µm gives 3300 nodes for 150–1000 K).
 const RESPONSE_TABLE_MIN_WAVELENGTH_UM: f64 = 0.5;
 
-/// Second radiation constant hc/k, m·K (exact with the 2019 SI constants).
-const C2_M_K: f64 = PLANCK_H * SPEED_OF_LIGHT_C / BOLTZMANN_K;
-
-/// `∂ ln L/∂T` of Planck's law at `wavelength_um`, `t_k` (the same for the energy and the
-/// photon form): `x / (T (1 − e^{−x}))`, x = hc/(λkT) — differentiate
-/// `L ∝ 1/(e^x − 1)` with `dx/dT = −x/T`.
-fn planck_log_derivative(wavelength_um: f64, t_k: f64) -> f64 {
-    let x = C2_M_K / (wavelength_um * 1e-6 * t_k);
-    x / (t_k * -(-x).exp_m1())
-}
-
 /// The sensor's blackbody response chain (everything needed to evaluate DN*(T), μ_e(T)
 /// and L_band(T)); cheap to clone into the lookup-table closures.
 ///
-/// μ_e(T) and L_band(T) are band integrals (adaptive quadrature, ~1e-10 relative). They are
-/// tabulated once per calibration, with their exact temperature derivatives (the same
-/// integrals of `∂L/∂T = L · ∂ln L/∂T`), on the whole LUT range at steps of
-/// [`RESPONSE_TABLE_WIEN_STEP`] in the Wien exponent, and evaluated by cubic Hermite
-/// interpolation in 1/T ([`HermiteTable`]);
-/// outside the tables the integrals are evaluated directly.
+/// μ_e(T) and L_band(T) are band integrals. They are tabulated once per calibration, with
+/// their exact temperature derivatives (the band integrals of `∂L/∂T = L · ∂ln L/∂T`), on
+/// the whole LUT range at steps of [`RESPONSE_TABLE_WIEN_STEP`] in the Wien exponent, and
+/// evaluated by cubic Hermite interpolation in 1/T ([`HermiteTable`]). All four integrals
+/// of every table node come from one shared spectral rule ([`BandQuadrature`], ≲ 1e-10
+/// relative, one Planck evaluation per wavelength node and temperature); outside the tables
+/// the integrals are evaluated directly by adaptive quadrature (~1e-10 relative).
 #[derive(Debug, Clone)]
 struct Chain {
     camera: CameraEquation,
@@ -258,25 +253,35 @@ impl Chain {
             electrons_table: None,
             radiance_table: None,
         };
-        let c = &chain;
-        let lambda_min_um = c
+        chain.camera.validate()?;
+        let lambda_min_um = chain
             .response
             .support_um()
             .0
             .max(RESPONSE_TABLE_MIN_WAVELENGTH_UM);
         let step_inv_k = RESPONSE_TABLE_WIEN_STEP * lambda_min_um * 1e-6 / C2_M_K;
+        let quadrature = BandQuadrature::new(
+            &chain.response,
+            (
+                electrons_range_k.0.min(radiance_range_k.0),
+                electrons_range_k.1.max(radiance_range_k.1),
+            ),
+        )?;
+        let etendue_time = chain.camera.etendue_time();
+        let peak = chain.peak_response;
         let electrons = HermiteTable::new(
-            |t| (c.electrons_exact(t), c.electrons_derivative_exact(t)),
+            |t| {
+                let b = quadrature.eval(t);
+                (etendue_time * b.photon, etendue_time * b.photon_per_k)
+            },
             electrons_range_k.0,
             electrons_range_k.1,
             step_inv_k,
         )?;
         let radiance = HermiteTable::new(
             |t| {
-                (
-                    c.band_radiance_exact(t),
-                    c.band_radiance_derivative_exact(t),
-                )
+                let b = quadrature.eval(t);
+                (b.energy / peak, b.energy_per_k / peak)
             },
             radiance_range_k.0,
             radiance_range_k.1,
@@ -294,42 +299,9 @@ impl Chain {
             .unwrap_or(f64::NAN)
     }
 
-    /// dμ_e/dT: the camera equation with `∂L_λ/∂T` for the radiance.
-    fn electrons_derivative_exact(&self, t_k: f64) -> f64 {
-        let (lo, hi) = self.response.support_um();
-        self.camera
-            .electrons_spectral(
-                &self.response,
-                |w| planck_spectral_radiance(w, t_k) * planck_log_derivative(w, t_k),
-                lo,
-                hi,
-            )
-            .unwrap_or(f64::NAN)
-    }
-
     /// L_band(T) by the band integral.
     fn band_radiance_exact(&self, t_k: f64) -> f64 {
         band_radiance(t_k, &self.response).unwrap_or(f64::NAN) / self.peak_response
-    }
-
-    /// dL_band/dT by the band integral of `S ∂L_λ/∂T / max S`.
-    fn band_radiance_derivative_exact(&self, t_k: f64) -> f64 {
-        let (lo, hi) = self.response.support_um();
-        let s = &self.response;
-        integrate(
-            |w| {
-                let r = s.eval(w);
-                if r == 0.0 {
-                    0.0
-                } else {
-                    r * planck_spectral_radiance(w, t_k) * planck_log_derivative(w, t_k)
-                }
-            },
-            lo,
-            hi,
-            &s.breakpoints_um(),
-            1e-10,
-        ) / self.peak_response
     }
 
     /// Mean signal electrons of an on-axis pixel viewing a blackbody at `t_k`
@@ -370,6 +342,8 @@ pub struct Calibration {
     nuc: NucCoefficients,
     bad: BadPixelMap,
     dn_lut: TemperatureLut,
+    /// Fast inverse of `dn_lut` for whole images.
+    dn_inverse: InverseTable,
     radiance_lut: TemperatureLut,
     cos4: Option<Array2<f64>>,
     frames_per_level: usize,
@@ -380,7 +354,7 @@ pub struct Calibration {
 /// The cos⁴θ relative illumination of each pixel centre (θ from the IFOV and the pixel's
 /// offset from the array centre, tan²θ = x² + y²), as applied by the imaging engine
 /// (docs/design.md §4.1). Private copy: the engine's helper is not public.
-fn cos4_map(sensor: &Sensor, rows: usize, cols: usize) -> Array2<f64> {
+pub(crate) fn cos4_map(sensor: &Sensor, rows: usize, cols: usize) -> Array2<f64> {
     let d = sensor.ifov_rad();
     Array2::from_shape_fn((rows, cols), |(r, c)| {
         let y = (r as f64 - (rows as f64 - 1.0) / 2.0) * d;
@@ -441,24 +415,6 @@ fn average_frames(
             });
     }
     Ok((sum / frames as f64, clipped))
-}
-
-/// A stack `[frame, row, col]` of `frames` exposures of `mean_e` from frame index `first`.
-fn stack_frames(
-    instance: &DetectorInstance,
-    mean_e: &Array2<f64>,
-    first: u64,
-    frames: usize,
-) -> Result<Array3<f64>> {
-    let (rows, cols) = mean_e.dim();
-    let mut stack = Array3::zeros((frames, rows, cols));
-    for (i, mut plane) in stack.axis_iter_mut(Axis(0)).enumerate() {
-        let dn = instance.expose(mean_e, first + i as u64)?;
-        Zip::from(&mut plane)
-            .and(&dn)
-            .for_each(|p, &d| *p = d as f64);
-    }
-    Ok(stack)
 }
 
 /// The reference temperatures: explicit, else the sensor file's `[calibration]`, else
@@ -666,11 +622,13 @@ impl Calibration {
         let nuc = NucCoefficients::fit(&levels, opts.degree)?;
         let bad = bad_pixel_map(&chain, &averages, m, &nuc, clipped)?;
         let (dn_lut, radiance_lut) = lookup_tables(&chain, opts)?;
+        let dn_inverse = InverseTable::new(&dn_lut, model.expected_dn(0.0), INVERSE_TOLERANCE_K)?;
         Ok(Calibration {
             chain,
             nuc,
             bad,
             dn_lut,
+            dn_inverse,
             radiance_lut,
             cos4,
             frames_per_level: m,
@@ -804,18 +762,25 @@ impl Calibration {
     }
 
     /// Corrected DN → `(apparent temperature K, in-band radiance W m-2 sr-1, NaN count)`:
-    /// T by inverting the DN* table (docs/design.md §4.9), the radiance as `L_band(T)` of the
-    /// blackbody at that temperature. Values outside the table (or NaN) give NaN in both
-    /// images and are counted.
+    /// T by inverting the DN* table (docs/design.md §4.9; through its fast
+    /// [`InverseTable`], within [`INVERSE_TOLERANCE_K`] of
+    /// `dn_lut().temperature_or_nan`), the radiance as `L_band(T)` of the blackbody at that
+    /// temperature. Values outside the table (or NaN) give NaN in both images and are
+    /// counted.
     pub fn to_temperature(&self, corrected: ArrayView2<f64>) -> (Array2<f64>, Array2<f64>, usize) {
-        let t = Zip::from(&corrected).par_map_collect(|&v| self.dn_lut.temperature_or_nan(v));
-        let l = Zip::from(&t).par_map_collect(|&tk| {
-            if tk.is_nan() {
-                f64::NAN
-            } else {
-                self.radiance_lut.response(tk)
-            }
-        });
+        let mut t = Array2::zeros(corrected.dim());
+        let mut l = Array2::zeros(corrected.dim());
+        Zip::from(&mut t)
+            .and(&mut l)
+            .and(&corrected)
+            .par_for_each(|t, l, &v| {
+                *t = self.dn_inverse.temperature_or_nan(&self.dn_lut, v);
+                *l = if t.is_nan() {
+                    f64::NAN
+                } else {
+                    self.chain.band_radiance(*t)
+                };
+            });
         let nan = t.iter().filter(|v| v.is_nan()).count();
         (t, l, nan)
     }
@@ -869,55 +834,6 @@ impl Calibration {
 pub fn band_radiance_lut(sensor: &Sensor, range_k: (f64, f64)) -> Result<TemperatureLut> {
     let chain = Chain::new(sensor, sensor.detector(), range_k, range_k)?;
     TemperatureLut::new(move |t| chain.band_radiance(t), range_k.0, range_k.1)
-}
-
-/// Measured NETD (K) of `instance` from simulated frames (docs/design.md §4.10 style
-/// measurement, [`netd::measured_netd`]): `frames` frames of a uniform blackbody at `t_k`
-/// (frame indices from [`NETD_FRAME_BASE`]) and `frames` at `t_k + delta_t_k`; the
-/// temporal noise is the root of the pixel-averaged temporal variance at `t_k` and the
-/// responsivity the mean DN difference / ΔT, over the pixels not in `exclude`. Raw DN are
-/// used (NETD is a property of the sensor, not of the correction). The finite difference
-/// is one-sided: its relative bias is about `ΔT · S''/(2 S')`, so keep ΔT small (a fraction
-/// of a kelvin) when comparing with the analytic value. `optics.cos4` is applied as in the
-/// scene.
-///
-/// Errors: invalid temperatures, fewer than 2 frames, or the errors of the measurement.
-pub fn measured_netd(
-    sensor: &Sensor,
-    instance: &DetectorInstance,
-    t_k: f64,
-    delta_t_k: f64,
-    frames: usize,
-    exclude: Option<&BadPixelMap>,
-) -> Result<f64> {
-    require_positive("t_k", t_k)?;
-    require_positive("delta_t_k", delta_t_k)?;
-    if frames < 2 {
-        return Err(Error::param(
-            "frames",
-            frames,
-            "at least 2 frames per temperature",
-        ));
-    }
-    let model = instance.model();
-    let (rows, cols) = (model.rows(), model.cols());
-    let response = sensor.response();
-    let camera = sensor.camera();
-    let cos4 = sensor.optics.cos4.then(|| cos4_map(sensor, rows, cols));
-    let field = |t: f64| -> Result<Array2<f64>> {
-        let e = camera.electrons_blackbody(t, response)?;
-        Ok(match &cos4 {
-            Some(m) => m.mapv(|c| c * e),
-            None => Array2::from_elem((rows, cols), e),
-        })
-    };
-    let (e0, e1) = (field(t_k)?, field(t_k + delta_t_k)?);
-    let (s0, s1) = rayon::join(
-        || stack_frames(instance, &e0, NETD_FRAME_BASE, frames),
-        || stack_frames(instance, &e1, NETD_FRAME_BASE + 1_000_000, frames),
-    );
-    let m = netd::measured_netd(s0?.view(), s1?.view(), delta_t_k, exclude)?;
-    Ok(m.netd_k)
 }
 
 #[cfg(test)]

@@ -2,7 +2,7 @@
 //! apparent temperature, through the same sensor instance that recorded the scene
 //! ([`crate::calibration::Calibration`]).
 
-use crate::calibration::{measured_netd, Calibration, CalibrationOptions};
+use crate::calibration::{measured_netd_sampled, Calibration, CalibrationOptions, NetdSample};
 use crate::error::{Error, Result};
 use crate::report::{CalibrationReport, ResidualNonuniformity};
 use crate::sensor::Sensor;
@@ -27,16 +27,20 @@ const NETD_RELATIVE_PRECISION: f64 = 0.005;
 /// Most frames per temperature of the measured NETD.
 const NETD_MAX_FRAMES: usize = 16;
 
-/// Frames per temperature for the measured NETD of an array of `pixels` pixels: the pooled
-/// temporal variance has (F − 1)·N degrees of freedom, so its relative standard error is
-/// √(2/((F − 1)N)) and that of NETD = σ/R half of it (the responsivity, a mean over N
-/// pixels of F-frame averages, adds only √(2/F)·NETD/(ΔT√N), ~2e-4 here). F is the
-/// smallest count reaching [`NETD_RELATIVE_PRECISION`] (2 for a 384 × 288 array, 5 for
-/// 64 × 80), at most [`NETD_MAX_FRAMES`].
+/// The frames and rows of the report's measured NETD for a `rows × cols` detector: the
+/// cheapest sample reaching [`NETD_RELATIVE_PRECISION`] ([`NetdSample::for_precision`]:
+/// 2 frames of 55 evenly spaced rows of a 384 × 288 array; every row and 5 frames of a
+/// 64 × 80 one), at most [`NETD_MAX_FRAMES`] frames.
+///
+/// Errors: an empty detector.
+pub fn netd_sample(rows: usize, cols: usize) -> Result<NetdSample> {
+    NetdSample::for_precision(rows, cols, NETD_RELATIVE_PRECISION, NETD_MAX_FRAMES)
+}
+
+/// Frames per temperature of the measured NETD of an array of `pixels` pixels (in one
+/// row), for a progress estimate in frame exposures ([`netd_sample`] gives the rows too).
 pub fn netd_frames(pixels: usize) -> usize {
-    let dof_needed = 2.0 / (4.0 * NETD_RELATIVE_PRECISION * NETD_RELATIVE_PRECISION);
-    let f = 1.0 + (dof_needed / pixels.max(1) as f64).ceil();
-    (f as usize).clamp(2, NETD_MAX_FRAMES)
+    netd_sample(1, pixels.max(1)).map_or(2, |s| s.frames)
 }
 
 /// What the calibration stage returns: its report, or why it could not calibrate.
@@ -163,15 +167,18 @@ pub fn calibrate_frames(
             measured: "spatial σ/μ of a blackbody flat field averaged over frames_per_level frames, before and after NUC and bad-pixel replacement; temporal_floor = σ_t/(μ√M) is the temporal noise left in that average".to_string(),
         },
         netd_analytic_k_at_300k: cal.netd_analytic_k(NETD_AT_K).ok(),
-        netd_measured_k_at_300k: measured_netd(
-            sensor,
-            instance,
-            NETD_AT_K,
-            NETD_DELTA_K,
-            netd_frames(exposure.model().rows() * exposure.model().cols()),
-            Some(cal.bad_pixels()),
-        )
-        .ok(),
+        netd_measured_k_at_300k: netd_sample(exposure.model().rows(), exposure.model().cols())
+            .and_then(|sample| {
+                measured_netd_sampled(
+                    sensor,
+                    instance,
+                    NETD_AT_K,
+                    NETD_DELTA_K,
+                    &sample,
+                    Some(cal.bad_pixels()),
+                )
+            })
+            .ok(),
         uninvertible_pixels: nan_total,
         radiance_definition: RADIANCE_DEFINITION.to_string(),
     })))

@@ -233,7 +233,20 @@ pub fn detect(
     check_shape("bright", bright.dim(), dark.dim())?;
     criteria.validate()?;
     let response = &bright - &dark;
-    let (median_response, sigma_g) = median_and_robust_sigma(response.view()).ok_or_else(|| {
+    // The three family statistics are independent: computed side by side.
+    let ((response_stats, dark_stats), bright_median) = rayon::join(
+        || {
+            rayon::join(
+                || median_and_robust_sigma(response.view()),
+                || median_and_robust_sigma(dark),
+            )
+        },
+        || {
+            let mut v: Vec<f64> = bright.iter().copied().filter(|x| x.is_finite()).collect();
+            median_in_place(&mut v)
+        },
+    );
+    let (median_response, sigma_g) = response_stats.ok_or_else(|| {
         Error::param(
             "dark/bright",
             "no finite pixel",
@@ -247,9 +260,9 @@ pub fn detect(
             "a bright level that differs from the dark level (median bright − dark ≠ 0)",
         ));
     }
-    let (median_offset, sigma_o) = median_and_robust_sigma(dark)
+    let (median_offset, sigma_o) = dark_stats
         .ok_or_else(|| Error::param("dark", "no finite pixel", "at least one finite pixel"))?;
-    let median_bright = median_and_robust_sigma(bright).map_or(median_offset, |m| m.0);
+    let median_bright = bright_median.unwrap_or(median_offset);
     let sigma_response = sigma_g.max(criteria.min_sigma);
     let sigma_offset = sigma_o.max(criteria.min_sigma);
     let k = criteria.k_sigma;

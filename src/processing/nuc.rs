@@ -48,7 +48,7 @@
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
-use ndarray::{Array2, Array3, ArrayView2, Zip};
+use ndarray::{Array2, Array3, ArrayView1, ArrayView2, Axis, Zip};
 use ndarray_npy::{ReadNpyExt, WriteNpyExt};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -176,42 +176,50 @@ impl NucCoefficients {
         let references: Vec<f64> = levels.iter().map(|l| l.0).collect();
         let frames: Vec<ArrayView2<f64>> = levels.iter().map(|l| l.1).collect();
 
-        // One row per task, with per-thread scratch: `[col, k]` coefficients and the
-        // rank-deficient columns of each row.
+        // One row per task, written straight into the coefficient planes, with per-thread
+        // scratch; each task returns the rank-deficient columns of its row.
         let n1 = degree + 1;
-        let fits: Vec<(Vec<f64>, Vec<usize>)> = (0..rows)
+        let mut coefficients = Array3::zeros((n1, rows, cols));
+        let deficient: Vec<Vec<usize>> = coefficients
+            .axis_iter_mut(Axis(1))
             .into_par_iter()
+            .enumerate()
             .map_init(
-                || (FitScratch::default(), Vec::with_capacity(frames.len())),
-                |(scratch, z), i| {
-                    let mut coef = vec![0.0; cols * n1];
+                || {
+                    (
+                        FitScratch::default(),
+                        vec![0.0; frames.len()],
+                        vec![0.0; n1],
+                    )
+                },
+                |(scratch, z, a), (i, mut planes)| {
+                    let rows: Vec<ArrayView1<f64>> = frames.iter().map(|f| f.row(i)).collect();
                     let mut deficient = Vec::new();
-                    for (j, a) in coef.chunks_exact_mut(n1).enumerate() {
-                        z.clear();
-                        z.extend(
-                            frames
-                                .iter()
-                                .map(|f| (f[[i, j]] - signal_centre) / signal_scale),
-                        );
-                        if !fit_polynomial(z, &references, degree, scratch, a) {
+                    for j in 0..cols {
+                        for (zl, row) in z.iter_mut().zip(&rows) {
+                            *zl = (row[j] - signal_centre) / signal_scale;
+                        }
+                        let full = if degree == 1 {
+                            fit_line_qr(z, &references, a)
+                        } else {
+                            fit_polynomial(z, &references, degree, scratch, a)
+                        };
+                        if !full {
                             deficient.push(j);
                         }
+                        for (k, &v) in a.iter().enumerate() {
+                            planes[[k, j]] = v;
+                        }
                     }
-                    (coef, deficient)
+                    deficient
                 },
             )
             .collect();
-
-        let mut coefficients = Array3::zeros((n1, rows, cols));
-        let mut rank_deficient = Vec::new();
-        for (i, (coef, deficient)) in fits.into_iter().enumerate() {
-            for (j, a) in coef.chunks_exact(n1).enumerate() {
-                for (k, &v) in a.iter().enumerate() {
-                    coefficients[[k, i, j]] = v;
-                }
-            }
-            rank_deficient.extend(deficient.into_iter().map(|j| (i, j)));
-        }
+        let rank_deficient = deficient
+            .into_iter()
+            .enumerate()
+            .flat_map(|(i, js)| js.into_iter().map(move |j| (i, j)))
+            .collect();
         Ok(NucCoefficients {
             degree,
             signal_centre,
@@ -495,6 +503,36 @@ fn fit_polynomial(z: &[f64], y: &[f64], degree: usize, w: &mut FitScratch, a: &m
     full
 }
 
+/// [`fit_polynomial`] for degree 1 in closed form: the QR route's own arithmetic with the
+/// Vandermonde columns `1` and `z` (modified Gram–Schmidt makes the second column
+/// `z − z̄`, of norm √Sxx), so `a₁ = Σ(z − z̄)(y − ȳ)/Sxx` and `a₀ = ȳ − a₁ z̄` — the
+/// least-squares line — with the same rank test (`√Sxx ≤ RANK_TOL · max(‖z‖, √L)`: a
+/// constant, `a = (ȳ, 0)`, and false) and NaN coefficients for non-finite input.
+fn fit_line_qr(z: &[f64], y: &[f64], a: &mut [f64]) -> bool {
+    let l = z.len() as f64;
+    if z.iter().chain(y).any(|v| !v.is_finite()) {
+        a.fill(f64::NAN);
+        return false;
+    }
+    let z_mean = z.iter().sum::<f64>() / l;
+    let y_mean = y.iter().sum::<f64>() / l;
+    let (mut sxx, mut sxy, mut zz) = (0.0, 0.0, 0.0);
+    for (&zi, &yi) in z.iter().zip(y) {
+        let dz = zi - z_mean;
+        sxx += dz * dz;
+        sxy += dz * (yi - y_mean);
+        zz += zi * zi;
+    }
+    if sxx.sqrt() <= RANK_TOL * zz.sqrt().max(l.sqrt()) {
+        a[0] = y_mean;
+        a[1] = 0.0;
+        return false;
+    }
+    a[1] = sxy / sxx;
+    a[0] = y_mean - a[1] * z_mean;
+    true
+}
+
 /// Residual non-uniformity of a (corrected) flat-field frame: spatial standard deviation
 /// over mean, `σ_s / μ` (n − 1 normalisation), over the finite pixels not flagged in
 /// `exclude`. For a frame averaged over many images this is the fixed-pattern residual;
@@ -574,4 +612,48 @@ fn read_coefficients(
     file.seek(SeekFrom::Start(0))
         .map_err(|e| Error::io(path, e))?;
     Ok(Array3::<f64>::read_npy(BufReader::new(file)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The closed-form line agrees with the QR route to rounding on random data (3 to 6
+    /// levels), and both treat a constant signal as rank deficient with `a = (ȳ, 0)`.
+    #[test]
+    fn closed_form_line_matches_qr() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let mut scratch = FitScratch::default();
+        for l in 3..=6 {
+            for _ in 0..200 {
+                let z: Vec<f64> = (0..l).map(|_| next()).collect();
+                let y: Vec<f64> = z
+                    .iter()
+                    .map(|zi| 3000.0 + 900.0 * zi + 5.0 * next())
+                    .collect();
+                let (mut a, mut b) = ([0.0; 2], [0.0; 2]);
+                assert!(fit_line_qr(&z, &y, &mut a));
+                assert!(fit_polynomial(&z, &y, 1, &mut scratch, &mut b));
+                for k in 0..2 {
+                    assert!(
+                        (a[k] - b[k]).abs() <= 1e-11 * b[k].abs().max(1.0),
+                        "{a:?} {b:?}"
+                    );
+                }
+            }
+        }
+        let (z, y) = ([0.25; 4], [1.0, 2.0, 3.0, 6.0]);
+        let (mut a, mut b) = ([0.0; 2], [0.0; 2]);
+        assert!(!fit_line_qr(&z, &y, &mut a));
+        assert!(!fit_polynomial(&z, &y, 1, &mut scratch, &mut b));
+        assert_eq!(a, [3.0, 0.0]);
+        assert!((b[0] - 3.0).abs() < 1e-14 && b[1] == 0.0, "{b:?}");
+        assert!(!fit_line_qr(&[f64::NAN, 1.0], &[1.0, 2.0], &mut a) && a[0].is_nan());
+    }
 }

@@ -259,3 +259,141 @@ impl HermiteTable {
         )
     }
 }
+
+/// Fast inverse of a [`TemperatureLut`] for whole images: the reciprocal temperature
+/// u = 1/T tabulated against the log-signal `w = ln(v − v_floor)` on equal steps and
+/// interpolated by 4-point Lagrange cubics, each table interval checked against the exact
+/// inversion ([`TemperatureLut::temperature`]).
+///
+/// Why these coordinates: a blackbody band response above its zero-signal level
+/// `v_floor` behaves like `v − v_floor ∝ e^{−c u}` (Wien, c = hc/(λk)), so u is nearly
+/// linear in w over the whole table and a cubic in w is accurate to a small fraction of a
+/// millikelvin with a few hundred nodes; the lookup is O(1) (no search), one logarithm and
+/// a cubic per pixel, instead of a binary search and a Newton polish on the response.
+///
+/// Accuracy: the error of the cubic on an interval peaks near its midpoint (the node
+/// polynomial `(s+1)s(s−1)(s−2)`); at construction every interval's midpoint is inverted
+/// exactly and compared. The table starts at [`INVERSE_MIN_INTERVALS`] intervals and is
+/// doubled (up to [`INVERSE_MAX_INTERVALS`]) until every midpoint is within
+/// `tolerance_k`; intervals still outside it are flagged and their pixels use the exact
+/// inversion, so the result is everywhere within about `tolerance_k` of
+/// [`TemperatureLut::temperature`] (tested ≤ 1e-6 K over dense sweeps).
+#[derive(Debug, Clone, PartialEq)]
+pub struct InverseTable {
+    floor: f64,
+    value_range: (f64, f64),
+    w0: f64,
+    inv_step_w: f64,
+    /// 1/T at the nodes.
+    u: Vec<f64>,
+    /// Intervals inverted exactly (the cubic missed the tolerance there).
+    exact: Vec<bool>,
+}
+
+/// Intervals of the first [`InverseTable`] (doubled as needed).
+pub const INVERSE_MIN_INTERVALS: usize = 256;
+
+/// Most intervals of an [`InverseTable`].
+pub const INVERSE_MAX_INTERVALS: usize = 8192;
+
+impl InverseTable {
+    /// The inverse of `lut` in the log-signal coordinate `ln(v − floor)`, `floor` the
+    /// response's zero-signal level (a floor at or above the table's smallest value is
+    /// replaced by one table span below it), each interval within `tolerance_k` of the
+    /// exact inversion or flagged (type documentation).
+    ///
+    /// Errors: a tolerance that is not finite and > 0, or an exact inversion that fails
+    /// inside the table's range (naming the value).
+    pub fn new(lut: &TemperatureLut, floor: f64, tolerance_k: f64) -> Result<Self> {
+        use rayon::prelude::*;
+        crate::error::require_positive("tolerance_k", tolerance_k)?;
+        let (v_lo, v_hi) = lut.value_range();
+        let floor = if floor.is_finite() && floor < v_lo {
+            floor
+        } else {
+            v_lo - (v_hi - v_lo)
+        };
+        let (w0, w1) = ((v_lo - floor).ln(), (v_hi - floor).ln());
+        let mut intervals = INVERSE_MIN_INTERVALS;
+        loop {
+            let step = (w1 - w0) / intervals as f64;
+            // Node and midpoint values; the end nodes are the table's own end values.
+            let value_at = |k2: usize| -> f64 {
+                if k2 == 0 {
+                    v_lo
+                } else if k2 == 2 * intervals {
+                    v_hi
+                } else {
+                    (floor + (w0 + 0.5 * step * k2 as f64).exp()).clamp(v_lo, v_hi)
+                }
+            };
+            let t: Vec<f64> = (0..=2 * intervals)
+                .into_par_iter()
+                .map(|k2| lut.temperature(value_at(k2)))
+                .collect::<Result<_>>()?;
+            let u: Vec<f64> = t.iter().step_by(2).map(|t| 1.0 / t).collect();
+            let mut table = InverseTable {
+                floor,
+                value_range: (v_lo, v_hi),
+                w0,
+                inv_step_w: 1.0 / step,
+                u,
+                exact: vec![false; intervals],
+            };
+            let mut missed = 0;
+            for i in 0..intervals {
+                let t_exact = t[2 * i + 1];
+                let t_cubic = 1.0 / table.cubic(i, 0.5);
+                let within = (t_cubic - t_exact).abs() <= tolerance_k;
+                if !within {
+                    table.exact[i] = true;
+                    missed += 1;
+                }
+            }
+            if missed == 0 || intervals >= INVERSE_MAX_INTERVALS {
+                return Ok(table);
+            }
+            intervals *= 2;
+        }
+    }
+
+    /// Number of table intervals.
+    pub fn intervals(&self) -> usize {
+        self.exact.len()
+    }
+
+    /// Number of intervals inverted exactly (where the cubic missed the tolerance).
+    pub fn exact_intervals(&self) -> usize {
+        self.exact.iter().filter(|&&e| e).count()
+    }
+
+    /// 1/T by the cubic through the four nodes around interval `i` (one-sided at the ends),
+    /// at fraction `s` ∈ [0, 1] of the interval.
+    fn cubic(&self, i: usize, s: f64) -> f64 {
+        let n = self.u.len() - 1;
+        let j0 = i.saturating_sub(1).min(n - 3);
+        let x = s + (i - j0) as f64;
+        let (a, b, c, d) = (x, x - 1.0, x - 2.0, x - 3.0);
+        let u = &self.u[j0..j0 + 4];
+        -u[0] * b * c * d / 6.0 + u[1] * a * c * d / 2.0 - u[2] * a * b * d / 2.0
+            + u[3] * a * b * c / 6.0
+    }
+
+    /// The temperature whose response is `value` (K), NaN for NaN or values outside the
+    /// table's value range — the same values as `lut.temperature_or_nan(value)` to within
+    /// the tolerance of the construction. `lut` must be the table this inverse was built
+    /// from (it serves the flagged intervals).
+    pub fn temperature_or_nan(&self, lut: &TemperatureLut, value: f64) -> f64 {
+        let (v_lo, v_hi) = self.value_range;
+        if !(value >= v_lo && value <= v_hi) {
+            return f64::NAN;
+        }
+        let n = self.exact.len();
+        let pos = (((value - self.floor).ln() - self.w0) * self.inv_step_w).clamp(0.0, n as f64);
+        let i = (pos as usize).min(n - 1);
+        if self.exact[i] {
+            return lut.temperature_or_nan(value);
+        }
+        1.0 / self.cubic(i, pos - i as f64)
+    }
+}

@@ -4,6 +4,7 @@ mod architecture;
 mod atmosphere;
 mod browser;
 mod calibration;
+mod calibration_routes;
 mod cfa;
 mod characterize;
 mod cli;

@@ -477,7 +477,11 @@ fn response_tables_match_direct_integrals() {
             let l_direct = band_radiance(t, sensor.response()).unwrap() / cal.peak_response();
             let rel = (cal.band_radiance(t) / l_direct - 1.0).abs();
             assert!(rel < 1e-7, "{name} {opts:?} {t} K: L rel {rel:e}");
-            let back = lut.temperature(l_direct).unwrap();
+            // The table's end values come from its own spectral rule, which differs from
+            // the adaptive integral by ~1e-13 relative: at exactly 150 K or 1000 K the
+            // direct value may lie a few ulps outside the table, so it is clamped in.
+            let (v0, v1) = lut.value_range();
+            let back = lut.temperature(l_direct.clamp(v0, v1)).unwrap();
             assert!((back - t).abs() < 1e-3, "{name} {t} K -> {back} K");
         }
     }
