@@ -1,4 +1,4 @@
-//! Transfer functions from 1-D tables (docs/design.md §4.14).
+//! Transfer functions from 1-D tables (docs/design.md §4.15).
 //!
 //! Every wavelength-dependent component of the cascade is radial and depends on frequency
 //! only through a λ-scaled argument:
