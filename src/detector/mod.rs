@@ -512,13 +512,7 @@ impl DetectorInstance {
         frame_index: u64,
     ) -> Result<Array2<u16>> {
         let m = &self.model;
-        if mean_e.dim() != (m.rows, m.cols) {
-            return Err(Error::param(
-                "mean electrons",
-                format!("{} x {}", mean_e.nrows(), mean_e.ncols()),
-                format!("the detector's {} x {} pixels", m.rows, m.cols),
-            ));
-        }
+        self.check_mean_shape(mean_e)?;
         if let Some((idx, v)) = mean_e.indexed_iter().find(|(_, v)| !v.is_finite()) {
             return Err(Error::param(
                 format!("mean electrons at row {}, column {}", idx.0, idx.1),
@@ -536,6 +530,19 @@ impl DetectorInstance {
             .map_err(|e| Error::OutOfRange(format!("detector frame assembly: {e}")))
     }
 
+    /// Refuses a mean-electron image of another shape than the detector.
+    fn check_mean_shape(&self, mean_e: &Array2<f64>) -> Result<()> {
+        let m = &self.model;
+        if mean_e.dim() != (m.rows, m.cols) {
+            return Err(Error::param(
+                "mean electrons",
+                format!("{} x {}", mean_e.nrows(), mean_e.ncols()),
+                format!("the detector's {} x {} pixels", m.rows, m.cols),
+            ));
+        }
+        Ok(())
+    }
+
     /// As [`expose`](Self::expose) for the listed rows only: row k of the result is row
     /// `rows[k]` of frame `frame_index`, bit for bit (the temporal streams are keyed per
     /// row), at the cost of those rows — for measurements that need only a sample of the
@@ -550,13 +557,7 @@ impl DetectorInstance {
         frame_index: u64,
     ) -> Result<Array2<u16>> {
         let m = &self.model;
-        if mean_e.dim() != (m.rows, m.cols) {
-            return Err(Error::param(
-                "mean electrons",
-                format!("{} x {}", mean_e.nrows(), mean_e.ncols()),
-                format!("the detector's {} x {} pixels", m.rows, m.cols),
-            ));
-        }
+        self.check_mean_shape(mean_e)?;
         if let Some(&i) = rows.iter().find(|&&i| i >= m.rows) {
             return Err(Error::param(
                 "row",

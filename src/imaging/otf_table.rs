@@ -92,13 +92,7 @@ impl Table1d {
                     beyond,
                 };
             }
-            let mut finer = Vec::with_capacity(2 * n + 1);
-            for i in 0..n {
-                finer.push(values[i]);
-                finer.push(mids[i]);
-            }
-            finer.push(values[n]);
-            values = finer;
+            values = interleave(&values, &mids);
             n *= 2;
         }
     }
@@ -127,6 +121,18 @@ impl Table1d {
     pub fn is_empty(&self) -> bool {
         self.values.is_empty()
     }
+}
+
+/// The samples of a table with its step halved: `values[0], mids[0], values[1], …,
+/// mids[n−1], values[n]` (`mids[i]` the function at the midpoint of interval i).
+fn interleave<V: Copy>(values: &[V], mids: &[V]) -> Vec<V> {
+    let mut finer = Vec::with_capacity(values.len() + mids.len());
+    for (v, m) in values.iter().zip(mids) {
+        finer.push(*v);
+        finer.push(*m);
+    }
+    finer.extend(values.last());
+    finer
 }
 
 fn sample(f: &impl Fn(f64) -> f64, end: f64, n: usize) -> Vec<f64> {
@@ -359,13 +365,7 @@ impl RadialTables {
             if worst <= PROFILE_MIDPOINT_TOLERANCE || 2 * n > MAX_INTERVALS || end <= 0.0 {
                 break;
             }
-            let mut finer = Vec::with_capacity(2 * n + 1);
-            for i in 0..n {
-                finer.push(values[i]);
-                finer.push(mids[i]);
-            }
-            finer.push(values[n]);
-            values = finer;
+            values = interleave(&values, &mids);
             n *= 2;
         }
         let aerosol = wavelengths_um
