@@ -623,7 +623,7 @@ impl Imager {
                         .zip(planes.par_iter())
                         .for_each(|(rs, plane)| {
                             let view = plane.view();
-                            fft.rows_forward(|r, row| self.pad.row(&view, r, row), rs);
+                            fft.rows_forward_blocked(|r, row| self.pad.row(&view, r, row), rs);
                         });
                     let t2 = Instant::now();
                     let weights: Vec<f64> = chunk
@@ -875,7 +875,7 @@ impl Imager {
 
 /// The fused column pass of a chunk of bands: for every block of [`BLOCK_COLS`] column
 /// frequencies (blocks in parallel), every band's row spectra are column-transformed
-/// ([`RealFft2::column_block`], one scratch per band), then one pass over the block adds
+/// ([`RealFft2::column_block_blocked`], one scratch per band), then one pass over the block adds
 /// all bands, in band order, to each accumulator sample:
 /// `acc += spec_b · w_b · A(f) · P_b(ρ(f))`, with A the achromatic product and P_b band
 /// b's chromatic profile, all bands interpolated at once from the chunk's common ρ grid
@@ -885,7 +885,8 @@ impl Imager {
 /// worker with the same operations in the same order whatever the thread count, so the
 /// result does not depend on it.
 ///
-/// `rowspecs[c]` is band c's row pass ([`RealFft2::rows_forward`]), `weights[c]` its
+/// `rowspecs[c]` is band c's block-major row pass ([`RealFft2::rows_forward_blocked`]),
+/// `weights[c]` its
 /// spectral weight and lane c of `profile` ([`Imager::chunk_profile`]) its profile.
 pub fn accumulate_chunk<T: FftFloat>(
     fft: &RealFft2<T>,
@@ -904,11 +905,10 @@ pub fn accumulate_chunk<T: FftFloat>(
         .for_each_init(
             || (0..nb).map(|_| fft.column_scratch()).collect::<Vec<_>>(),
             |scratch, (bi, (a, r))| {
-                let n = a.len() / rows;
                 let blocks: Vec<&[num_complex::Complex<T>]> = rowspecs[..nb]
                     .iter()
                     .zip(scratch.iter_mut())
-                    .map(|(rs, sc)| &*fft.column_block(rs, bi * BLOCK_COLS, n, false, sc))
+                    .map(|(rs, sc)| &*fft.column_block_blocked(rs, bi, sc))
                     .collect();
                 let mut g = [0.0; CHUNK_LANES];
                 for (k, (a, p)) in a.iter_mut().zip(r).enumerate() {
