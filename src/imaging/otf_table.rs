@@ -457,7 +457,7 @@ impl ChunkProfile {
     /// Every band's chromatic product at radial frequency `rho` ≥ 0 (cycles/rad) into
     /// `out[..bands]` (lanes beyond are 0): one grid position, one linear interpolation
     /// per lane (vectorised). Beyond the grid's end the last value holds.
-    #[inline]
+    #[inline(always)]
     pub fn eval_all(&self, rho: f64, out: &mut [f64; CHUNK_LANES]) {
         let t = rho * self.inv_step;
         // At least 256 intervals (`last ≥ 256`), at most MAX_INTERVALS = 2^22 < 2^32, so
