@@ -17,6 +17,8 @@
 //! (default 3), `EOIR_BENCH_PHASES=1` (also print where eoir's forward time goes: row pass,
 //! in-place column pass).
 
+mod bench_common;
+use bench_common::median;
 use std::process::Command;
 use std::time::Instant;
 
@@ -49,20 +51,6 @@ for name, dt in (("f32", np.float32), ("f64", np.float64)):
         out[kind + name] = ts
 print(json.dumps(out))
 "#;
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.retain(|x| x.is_finite());
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(|a, b| a.total_cmp(b));
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
 
 fn frame<T: FftFloat>(n: usize) -> Array2<T> {
     Array2::from_shape_fn((n, n), |(r, c)| {

@@ -13,6 +13,8 @@
 //! /tmp/eoir-bench-frames), `EOIR_BENCH_REPEAT` (runs per setting, default 5),
 //! `EOIR_BENCH_IN_FLIGHT` (N, default the number of CPUs).
 
+mod bench_common;
+use bench_common::{median, peak_rss_mib, time_v_field};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -26,20 +28,6 @@ const K: usize = 3;
 
 /// The all-components SWIR sensor; the detector size is set with overrides.
 const SENSOR: &str = include_str!("../benches/swir_all_components.toml");
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.retain(|x| x.is_finite());
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(|a, b| a.total_cmp(b));
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
 
 fn loadavg() -> String {
     std::fs::read_to_string("/proc/loadavg")
@@ -121,13 +109,8 @@ fn eoir_run(
     if !o.status.success() {
         return Err(format!("eoir run failed: {err}").into());
     }
-    let field = |key: &str| {
-        err.lines()
-            .find_map(|l| l.trim().strip_prefix(key))
-            .and_then(|v| v.trim().parse::<f64>().ok())
-            .unwrap_or(f64::NAN)
-    };
-    let rss = field("Maximum resident set size (kbytes): ") / 1024.0;
+    let field = |key: &str| time_v_field(&err, key);
+    let rss = peak_rss_mib(&err);
     let cpu = field("User time (seconds): ") + field("System time (seconds): ");
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json"))?)?;

@@ -17,6 +17,8 @@
 //! square): every band of the cube has sensor response and is read, and the engine's
 //! share is the same for every format, so differences between formats are the readers'.
 
+mod bench_common;
+use bench_common::peak_rss_mib;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
@@ -177,14 +179,7 @@ fn time_run(
     if !o.status.success() {
         return Err(format!("eoir run {} failed: {err}", input.display()).into());
     }
-    let rss = err
-        .lines()
-        .find_map(|l| {
-            l.trim()
-                .strip_prefix("Maximum resident set size (kbytes): ")
-        })
-        .and_then(|v| v.trim().parse::<f64>().ok())
-        .map_or(f64::NAN, |kb| kb / 1024.0);
+    let rss = peak_rss_mib(&err);
     Ok((wall, rss))
 }
 

@@ -14,6 +14,8 @@
 //! layout of the ENVI file), `EOIR_BENCH_BASELINE_MAX_VOXELS` (skip the baseline above
 //! this many voxels; default 2^28).
 
+mod bench_common;
+use bench_common::{median, peak_rss_mib};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
@@ -39,20 +41,6 @@ fn sensor_overrides(det: usize) -> [String; 2] {
         format!("detector.rows={det}"),
         format!("detector.cols={det}"),
     ]
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.retain(|x| x.is_finite());
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(|a, b| a.total_cmp(b));
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 /// Median seconds of one forward transform and of `bands` forward + 1 inverse (the FFT
@@ -225,15 +213,7 @@ fn run(
         if !o.status.success() {
             return Err(format!("eoir run failed: {err}").into());
         }
-        rsss.push(
-            err.lines()
-                .find_map(|l| {
-                    l.trim()
-                        .strip_prefix("Maximum resident set size (kbytes): ")
-                })
-                .and_then(|v| v.trim().parse::<f64>().ok())
-                .map_or(f64::NAN, |kb| kb / 1024.0),
-        );
+        rsss.push(peak_rss_mib(&err));
         let report: serde_json::Value =
             serde_json::from_slice(&std::fs::read(outdir.join("report.json"))?)?;
         let t = &report["timings_s"];
