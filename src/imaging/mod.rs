@@ -47,8 +47,9 @@ use padding::{FramePad, PadMap};
 /// Bands read, row-transformed and accumulated together: the column pass then adds all of
 /// them to an accumulator block while it is in cache, and each parallel phase has enough
 /// work for the workers. Memory is a fixed number of planes and row spectra, whatever the
-/// number of bands in the cube.
-pub const BANDS_PER_CHUNK: usize = 4;
+/// number of bands in the cube. It is the lane count of the chunk's OTF profile
+/// ([`otf_table::CHUNK_LANES`], one 256-bit vector of f64), so the two cannot disagree.
+pub const BANDS_PER_CHUNK: usize = CHUNK_LANES;
 
 /// Fraction of the sensor's spectral response weight that may fall outside the input
 /// wavelength grid (issue requirement: the grid must cover all but 0.1 %).

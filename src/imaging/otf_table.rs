@@ -423,8 +423,8 @@ struct AerosolFactor {
     table: Table1d,
 }
 
-/// Bands per [`ChunkProfile`]: the engine's bands per chunk (`BANDS_PER_CHUNK`), one
-/// 256-bit vector of f64.
+/// Bands per [`ChunkProfile`], one 256-bit vector of f64; the engine's bands per chunk
+/// (`imaging::BANDS_PER_CHUNK`) are defined as this.
 pub const CHUNK_LANES: usize = 4;
 
 /// The chromatic transfer functions of the bands of one chunk on one common ρ grid (see
