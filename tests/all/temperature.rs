@@ -128,12 +128,13 @@ fn every_thermal_preset_and_option_writes_temperature_products() {
 fn calibration_temperatures_from_sensor_file_and_flag() {
     let dir = tempdir();
     let text = presets::resolved_toml("multimir", &[]).unwrap();
-    let sensor_path = dir.path().join("s.toml");
-    std::fs::write(
-        &sensor_path,
-        format!("{text}\n[calibration]\ntemperatures_k = [285.0, 300.0, 315.0]\n"),
-    )
-    .unwrap();
+    // The MultimIR sensor file with a `[calibration]` section line appended.
+    let with_calibration = |name: &str, line: &str| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, format!("{text}\n[calibration]\n{line}\n")).unwrap();
+        path
+    };
+    let sensor_path = with_calibration("s.toml", "temperatures_k = [285.0, 300.0, 315.0]");
     let cfg = eoir::sensor::SensorConfig::load(&sensor_path, &small(&[])).unwrap();
     let sensor = Sensor::build(&cfg).unwrap();
     let inst = DetectorInstance::new(sensor.detector(), 1).unwrap();
@@ -146,20 +147,10 @@ fn calibration_temperatures_from_sensor_file_and_flag() {
     .unwrap();
     assert_eq!(c.temperatures_k(), &[285.0, 300.0, 315.0]);
 
-    let bad = dir.path().join("bad.toml");
-    std::fs::write(
-        &bad,
-        format!("{text}\n[calibration]\ntemperature_k = [285.0, 300.0]\n"),
-    )
-    .unwrap();
+    let bad = with_calibration("bad.toml", "temperature_k = [285.0, 300.0]");
     let e = eoir::sensor::SensorConfig::load(&bad, &[]).unwrap_err();
     assert!(e.to_string().contains("temperature_k"), "{e}");
-    let one = dir.path().join("one.toml");
-    std::fs::write(
-        &one,
-        format!("{text}\n[calibration]\ntemperatures_k = [300.0]\n"),
-    )
-    .unwrap();
+    let one = with_calibration("one.toml", "temperatures_k = [300.0]");
     let e = eoir::sensor::SensorConfig::load(&one, &[]).unwrap_err();
     assert!(e.to_string().contains("calibration.temperatures_k"), "{e}");
 
