@@ -63,7 +63,7 @@ fn kernels(c: &mut Criterion) {
     let x = frame::<f32>(ny, nx);
     let mut rowspecs = vec![vec![Complex::new(0.0f32, 0.0); ny * hc]; BANDS_PER_CHUNK];
     for rs in rowspecs.iter_mut() {
-        fft.rows_forward_blocked(
+        fft.rows_forward_transposed(
             |r, row| row.copy_from_slice(x.row(r).as_slice().unwrap()),
             rs,
         );
@@ -78,7 +78,7 @@ fn kernels(c: &mut Criterion) {
             b.iter(|| {
                 accumulate_chunk(
                     &fft,
-                    &rowspecs,
+                    &mut rowspecs,
                     &weights,
                     &profile,
                     im.radial_samples(),

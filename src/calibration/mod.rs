@@ -108,7 +108,7 @@ pub struct CalibrationOptions {
     /// Blackbody temperatures of the calibration levels, K (at least `degree + 1`,
     /// distinct). Empty (the default): the sensor file's `[calibration] temperatures_k`,
     /// else `max(3, degree + 2)` levels from 10 % to 90 % of the sensor's usable range
-    /// ([`levels::automatic`]).
+    /// (`levels::automatic`).
     pub temperatures_k: Vec<f64>,
     /// Frames averaged per level (M ≥ 1). Default 16.
     pub frames_per_level: usize,

@@ -11,12 +11,19 @@
 //!    row spectra are gathered into a small contiguous per-worker buffer (`[column][row]`,
 //!    138 KiB for 1080 rows in f32: it stays in the core's L2 cache), transformed there
 //!    (`rustfft`, complex, length `rows`) and handed to the caller while still in cache.
-//!    No frame-sized transpose runs: the imaging engine multiplies each block by the OTF
-//!    and adds it to its accumulator straight away; [`RealFft2::forward`] and
+//!    No frame-sized transpose runs: [`RealFft2::forward`] and
 //!    [`RealFft2::inverse`] scatter each transformed block straight back into the columns
 //!    it came from ([`RealFft2::columns_in_place`]), so the standard layout costs no
 //!    frame-sized transpose either (the frame is read and written once per pass, as
 //!    pocketfft's `rfft2` does).
+//!
+//! 3. **The engine's path** ([`RealFft2::rows_forward_transposed`],
+//!    [`RealFft2::column_region_forward`]): the row pass writes its spectra transposed,
+//!    `[cols/2+1][rows]`, [`TILE_ROWS`] rows at a time (each column receives a whole cache
+//!    line), so every column is one contiguous run; the imaging engine transforms each
+//!    block of columns where it lies and adds it, OTF-weighted, to its accumulator while
+//!    it is still in cache. No gather, no scatter; the same plans and data, so the same
+//!    values bit for bit.
 //!
 //! The gather and the scatter move [`TILE_ROWS`] rows at a time: each column of the block
 //! then receives 8 consecutive samples (64 B in f32, 128 B in f64: whole cache lines)
@@ -193,92 +200,83 @@ impl<T: FftFloat> RealFft2<T> {
         );
     }
 
-    /// Row pass into the **block-major** layout the engine's fused column pass reads
-    /// ([`RealFft2::column_block_blocked`]): the row spectra of column frequencies
-    /// `u0 .. u0+n` of block `bi` (u0 = bi·[`BLOCK_COLS`], n ≤ [`BLOCK_COLS`]) are stored
-    /// together as `[rows][n]` from offset `u0·rows`, so a block's column pass reads one
-    /// contiguous region instead of `rows` strided pieces of the frame. `fill` as in
-    /// [`RealFft2::rows_forward`]; groups of [`TILE_ROWS`] rows in parallel, each row
-    /// transformed into a per-worker spectrum (the same plan and input as
-    /// [`RealFft2::rows_forward`], so the same values bit for bit) and copied to its
-    /// blocks.
-    pub fn rows_forward_blocked(
+    /// Row pass into the **transposed** layout `[cols/2+1][rows]` (element `u·rows + v` is
+    /// column frequency u of row v's spectrum), the layout the engine's fused column pass
+    /// transforms in place ([`RealFft2::column_region_forward`]): each column is then one
+    /// contiguous run, so the column pass needs no gather and no scatter. `fill` as in
+    /// [`RealFft2::rows_forward`]. Ranges of whole [`TILE_ROWS`]-row tiles in parallel;
+    /// each tile's rows are transformed into a per-worker `[TILE_ROWS][cols/2+1]` buffer
+    /// (in L1/L2) with the same plan and input as [`RealFft2::rows_forward`] (so the same
+    /// values bit for bit, whatever the split) and then transposed into place: every
+    /// column receives `TILE_ROWS` consecutive samples (64 B in f32, a whole cache line).
+    pub fn rows_forward_transposed(
         &self,
         fill: impl Fn(usize, &mut [T]) + Sync,
-        blocked: &mut [Complex<T>],
+        out_t: &mut [Complex<T>],
     ) {
         let (rows, cols) = (self.rows, self.cols);
         let hc = cols / 2 + 1;
         assert_eq!(
-            blocked.len(),
+            out_t.len(),
             rows * hc,
-            "RealFft2::rows_forward_blocked length"
+            "RealFft2::rows_forward_transposed length"
         );
         let zero = Complex::new(T::zero(), T::zero());
-        // Per group of TILE_ROWS rows, its piece of every block (disjoint slices).
-        let mut groups: Vec<Vec<&mut [Complex<T>]>> =
-            (0..rows.div_ceil(TILE_ROWS)).map(|_| Vec::new()).collect();
-        let mut rest = blocked;
-        let mut u0 = 0;
-        while u0 < hc {
-            let n = (hc - u0).min(BLOCK_COLS);
-            let (region, r) = std::mem::take(&mut rest).split_at_mut(rows * n);
-            rest = r;
-            for (g, piece) in region.chunks_mut(TILE_ROWS * n).enumerate() {
+        // A few row ranges per worker (load balance); each owns its piece of every column.
+        let tiles = rows.div_ceil(TILE_ROWS);
+        let tasks = (4 * rayon::current_num_threads()).clamp(1, tiles);
+        let span = tiles.div_ceil(tasks) * TILE_ROWS;
+        let mut groups: Vec<Vec<&mut [Complex<T>]>> = (0..rows.div_ceil(span))
+            .map(|_| Vec::with_capacity(hc))
+            .collect();
+        for column in out_t.chunks_mut(rows) {
+            for (g, piece) in column.chunks_mut(span).enumerate() {
                 groups[g].push(piece);
             }
-            u0 += n;
         }
         groups.into_par_iter().enumerate().for_each_init(
             || {
                 (
                     vec![T::zero(); cols],
-                    vec![zero; hc],
+                    vec![zero; TILE_ROWS * hc],
                     self.r2c.make_scratch_vec(),
                 )
             },
-            |(row, spec, sc), (g, mut pieces)| {
-                let r0 = g * TILE_ROWS;
-                let nr = (rows - r0).min(TILE_ROWS);
-                for dr in 0..nr {
-                    fill(r0 + dr, row);
-                    // Lengths match the plan by construction.
-                    let _ = self.r2c.process_with_scratch(row, spec, sc);
-                    let mut u0 = 0;
-                    for piece in pieces.iter_mut() {
-                        let n = piece.len() / nr;
-                        piece[dr * n..(dr + 1) * n].copy_from_slice(&spec[u0..u0 + n]);
-                        u0 += n;
+            |(row, tile, sc), (g, mut pieces)| {
+                let r0 = g * span;
+                let len = pieces.first().map_or(0, |p| p.len());
+                for t0 in (0..len).step_by(TILE_ROWS) {
+                    let nr = (len - t0).min(TILE_ROWS);
+                    for (dr, spec) in tile.chunks_exact_mut(hc).take(nr).enumerate() {
+                        fill(r0 + t0 + dr, row);
+                        // Lengths match the plan by construction.
+                        let _ = self.r2c.process_with_scratch(row, spec, sc);
+                    }
+                    for (u, piece) in pieces.iter_mut().enumerate() {
+                        for (dr, d) in piece[t0..t0 + nr].iter_mut().enumerate() {
+                            *d = tile[dr * hc + u];
+                        }
                     }
                 }
             },
         );
     }
 
-    /// Column pass of block `bi` of block-major row spectra
-    /// ([`RealFft2::rows_forward_blocked`]): the block's contiguous `[rows][n]` region is
-    /// transposed into the worker's buffer as `[n][rows]` (in cache) and transformed as in
-    /// [`RealFft2::column_block`], which it equals bit for bit.
-    pub fn column_block_blocked<'a>(
-        &self,
-        blocked: &[Complex<T>],
-        bi: usize,
-        sc: &'a mut ColumnScratch<T>,
-    ) -> &'a mut [Complex<T>] {
-        let rows = self.rows;
-        let hc = self.cols / 2 + 1;
-        let u0 = bi * BLOCK_COLS;
-        debug_assert!(u0 < hc);
-        let n = (hc - u0).min(BLOCK_COLS);
-        let src = &blocked[u0 * rows..(u0 + n) * rows];
-        let blk = &mut sc.block[..n * rows];
-        for (r, srow) in src.chunks_exact(n).enumerate() {
-            for (j, x) in srow.iter().enumerate() {
-                blk[j * rows + r] = *x;
-            }
-        }
-        self.col_forward.process_with_scratch(blk, &mut sc.fft);
-        blk
+    /// Forward column transforms, in place, of `region`: whole columns of a transposed
+    /// spectrum ([`RealFft2::rows_forward_transposed`]), `[n][rows]`. Each column gets the
+    /// same plan and data as in [`RealFft2::column_block`], hence the same values bit for
+    /// bit.
+    /// `scratch` comes from [`RealFft2::column_region_scratch`] (one per worker).
+    pub fn column_region_forward(&self, region: &mut [Complex<T>], scratch: &mut [Complex<T>]) {
+        debug_assert_eq!(region.len() % self.rows, 0);
+        self.col_forward.process_with_scratch(region, scratch);
+    }
+
+    /// Scratch for [`RealFft2::column_region_forward`] (the column plan's own, no block
+    /// buffer: the region is transformed where it lies).
+    pub fn column_region_scratch(&self) -> Vec<Complex<T>> {
+        let zero = Complex::new(T::zero(), T::zero());
+        vec![zero; self.col_forward.get_inplace_scratch_len()]
     }
 
     /// Column pass of one block: gathers columns `u0 .. u0+n` (n ≤ [`BLOCK_COLS`]) of the
@@ -602,32 +600,47 @@ mod tests {
         }
     }
 
-    /// The block-major row pass and its column blocks equal the standard ones bit for
-    /// bit, for shapes with a partial last block and row counts not multiple of the tile.
+    /// The transposed row pass and its in-place column transforms equal the standard
+    /// row pass and column blocks bit for bit, for shapes with a partial last block, row
+    /// counts not multiple of the tile, and 1 or 3 threads (different row splits).
     #[test]
-    fn blocked_column_blocks_equal_standard_ones() {
-        for (rows, cols) in [(37usize, 70usize), (8, 30), (5, 3), (19, 33)] {
-            let x = Array2::from_shape_fn((rows, cols), |(r, c)| {
-                ((r * 7 + c * 3) % 11) as f32 - 0.3 * c as f32
-            });
-            let fft = RealFft2::<f32>::new(rows, cols);
-            let hc = cols / 2 + 1;
-            let fill =
-                |r: usize, row: &mut [f32]| row.copy_from_slice(x.row(r).as_slice().unwrap());
-            let zero = Complex::new(0.0f32, 0.0);
-            let mut std_spec = vec![zero; rows * hc];
-            let mut blocked = vec![zero; rows * hc];
-            fft.rows_forward(fill, &mut std_spec);
-            fft.rows_forward_blocked(fill, &mut blocked);
-            let (mut a, mut b) = (fft.column_scratch(), fft.column_scratch());
-            for bi in 0..hc.div_ceil(BLOCK_COLS) {
-                let n = (hc - bi * BLOCK_COLS).min(BLOCK_COLS);
-                let want = fft.column_block(&std_spec, bi * BLOCK_COLS, n, false, &mut a);
-                let got = fft.column_block_blocked(&blocked, bi, &mut b);
-                assert_eq!(got.len(), want.len());
-                for (g, w) in got.iter().zip(want.iter()) {
-                    assert_eq!(g.re.to_bits(), w.re.to_bits(), "{rows}x{cols} block {bi}");
-                    assert_eq!(g.im.to_bits(), w.im.to_bits(), "{rows}x{cols} block {bi}");
+    fn transposed_row_pass_and_column_regions_equal_standard_ones() {
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            for (rows, cols) in [(37usize, 70usize), (8, 30), (5, 3), (19, 33), (130, 40)] {
+                let x = Array2::from_shape_fn((rows, cols), |(r, c)| {
+                    ((r * 7 + c * 3) % 11) as f32 - 0.3 * c as f32
+                });
+                let fft = RealFft2::<f32>::new(rows, cols);
+                let hc = cols / 2 + 1;
+                let fill =
+                    |r: usize, row: &mut [f32]| row.copy_from_slice(x.row(r).as_slice().unwrap());
+                let zero = Complex::new(0.0f32, 0.0);
+                let mut std_spec = vec![zero; rows * hc];
+                let mut t = vec![zero; rows * hc];
+                fft.rows_forward(fill, &mut std_spec);
+                pool.install(|| fft.rows_forward_transposed(fill, &mut t));
+                for v in 0..rows {
+                    for u in 0..hc {
+                        assert_eq!(
+                            t[u * rows + v],
+                            std_spec[v * hc + u],
+                            "{rows}x{cols} row pass"
+                        );
+                    }
+                }
+                let (mut a, mut b) = (fft.column_scratch(), fft.column_region_scratch());
+                for (bi, region) in t.chunks_mut(BLOCK_COLS * rows).enumerate() {
+                    let n = region.len() / rows;
+                    let want = fft.column_block(&std_spec, bi * BLOCK_COLS, n, false, &mut a);
+                    fft.column_region_forward(region, &mut b);
+                    for (g, w) in region.iter().zip(want.iter()) {
+                        assert_eq!(g.re.to_bits(), w.re.to_bits(), "{rows}x{cols} block {bi}");
+                        assert_eq!(g.im.to_bits(), w.im.to_bits(), "{rows}x{cols} block {bi}");
+                    }
                 }
             }
         }

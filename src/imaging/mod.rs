@@ -622,10 +622,7 @@ impl Imager {
                     let t1 = Instant::now();
                     rs.par_iter_mut()
                         .zip(planes.par_iter())
-                        .for_each(|(rs, plane)| {
-                            let view = plane.view();
-                            fft.rows_forward_blocked(|r, row| self.pad.row(&view, r, row), rs);
-                        });
+                        .for_each(|(rs, plane)| self.rows_forward_band(fft, plane.view(), rs));
                     let t2 = Instant::now();
                     let weights: Vec<f64> = chunk
                         .iter()
@@ -638,7 +635,7 @@ impl Imager {
                     let profile = self.chunk_profile(&wavelengths);
                     accumulate_chunk(
                         fft,
-                        &rs[..chunk.len()],
+                        &mut rs[..chunk.len()],
                         &weights,
                         &profile,
                         &self.radial,
@@ -670,6 +667,19 @@ impl Imager {
         let e = self.detector_image(&mut acc);
         stats.inverse_s = t0.elapsed().as_secs_f64();
         Ok((e, stats))
+    }
+
+    /// The row pass of one band plane: padded ([`Imager::padded_band`]'s frame, one row at
+    /// a time, never as a whole frame) and row-transformed into the transposed layout
+    /// `[cols/2+1][rows]` that [`accumulate_chunk`] column-transforms in place
+    /// ([`RealFft2::rows_forward_transposed`]).
+    pub fn rows_forward_band<T: FftFloat>(
+        &self,
+        fft: &RealFft2<T>,
+        plane: ArrayView2<f32>,
+        rowspec: &mut [num_complex::Complex<T>],
+    ) {
+        fft.rows_forward_transposed(|r, row| self.pad.row(&plane, r, row), rowspec);
     }
 
     /// The detector image of an accumulated half-plane spectrum (`[fy, fx]`, the padded
@@ -875,9 +885,9 @@ impl Imager {
 }
 
 /// The fused column pass of a chunk of bands: for every block of [`BLOCK_COLS`] column
-/// frequencies (blocks in parallel), every band's row spectra are column-transformed
-/// ([`RealFft2::column_block_blocked`], one scratch per band), then one pass over the block adds
-/// all bands, in band order, to each accumulator sample:
+/// frequencies (blocks in parallel), every band's columns are transformed in place
+/// ([`RealFft2::column_region_forward`]: the row pass left them contiguous), then one pass
+/// over the block adds all bands, in band order, to each accumulator sample:
 /// `acc += spec_b · w_b · A(f) · P_b(ρ(f))`, with A the achromatic product and P_b band
 /// b's chromatic profile, all bands interpolated at once from the chunk's common ρ grid
 /// ([`ChunkProfile::eval_all`]; no per-band OTF array, no frame-sized transpose; the
@@ -886,12 +896,12 @@ impl Imager {
 /// worker with the same operations in the same order whatever the thread count, so the
 /// result does not depend on it.
 ///
-/// `rowspecs[c]` is band c's block-major row pass ([`RealFft2::rows_forward_blocked`]),
-/// `weights[c]` its
-/// spectral weight and lane c of `profile` ([`Imager::chunk_profile`]) its profile.
+/// `rowspecs[c]` is band c's transposed row pass ([`RealFft2::rows_forward_transposed`];
+/// used as scratch: it holds the band's 2-D spectrum on return), `weights[c]` its spectral
+/// weight and lane c of `profile` ([`Imager::chunk_profile`]) its profile.
 pub fn accumulate_chunk<T: FftFloat>(
     fft: &RealFft2<T>,
-    rowspecs: &[Vec<num_complex::Complex<T>>],
+    rowspecs: &mut [Vec<num_complex::Complex<T>>],
     weights: &[f64],
     profile: &ChunkProfile,
     radial: &[[f64; 2]],
@@ -899,18 +909,34 @@ pub fn accumulate_chunk<T: FftFloat>(
 ) {
     let rows = fft.shape().0;
     let nb = rowspecs.len().min(weights.len()).min(profile.bands());
+    let block = BLOCK_COLS * rows;
+    // Per block, every band's region of it (disjoint slices, contiguous columns).
+    let mut regions: Vec<Vec<&mut [num_complex::Complex<T>]>> = (0..acc_t.len().div_ceil(block))
+        .map(|_| Vec::with_capacity(nb))
+        .collect();
+    for rs in rowspecs[..nb].iter_mut() {
+        for (bi, region) in rs.chunks_mut(block).enumerate() {
+            regions[bi].push(region);
+        }
+    }
     acc_t
-        .par_chunks_mut(BLOCK_COLS * rows)
-        .zip(radial.par_chunks(BLOCK_COLS * rows))
-        .enumerate()
+        .par_chunks_mut(block)
+        .zip(radial.par_chunks(block))
+        .zip(regions.into_par_iter())
         .for_each_init(
-            || (0..nb).map(|_| fft.column_scratch()).collect::<Vec<_>>(),
-            |scratch, (bi, (a, r))| {
-                let blocks: Vec<&[num_complex::Complex<T>]> = rowspecs[..nb]
-                    .iter()
-                    .zip(scratch.iter_mut())
-                    .map(|(rs, sc)| &*fft.column_block_blocked(rs, bi, sc))
-                    .collect();
+            || fft.column_region_scratch(),
+            |sc, ((a, r), mut bands)| {
+                for region in bands.iter_mut() {
+                    fft.column_region_forward(region, sc);
+                }
+                let blocks: Vec<&[num_complex::Complex<T>]> = bands.iter().map(|b| &**b).collect();
+                if let (Ok(blocks), Ok(w)) = (
+                    <[&[num_complex::Complex<T>]; CHUNK_LANES]>::try_from(&blocks[..]),
+                    <[f64; CHUNK_LANES]>::try_from(&weights[..nb]),
+                ) {
+                    accumulate_block_full(a, r, blocks, w, profile);
+                    return;
+                }
                 let mut g = [0.0; CHUNK_LANES];
                 for (k, (a, p)) in a.iter_mut().zip(r).enumerate() {
                     if p[1] == 0.0 {
@@ -927,4 +953,33 @@ pub fn accumulate_chunk<T: FftFloat>(
                 }
             },
         );
+}
+
+/// [`accumulate_chunk`]'s sample loop for a full chunk ([`CHUNK_LANES`] bands): the same
+/// operations in the same order, with the bands as fixed-size arrays (no per-band bounds
+/// checks or loop bookkeeping inside the loop over samples).
+#[inline(never)]
+fn accumulate_block_full<T: FftFloat>(
+    acc: &mut [Complex64],
+    radial: &[[f64; 2]],
+    blocks: [&[num_complex::Complex<T>]; CHUNK_LANES],
+    weights: [f64; CHUNK_LANES],
+    profile: &ChunkProfile,
+) {
+    let n = acc.len().min(radial.len());
+    let blocks = blocks.map(|b| &b[..n]);
+    let mut g = [0.0; CHUNK_LANES];
+    for (k, (a, p)) in acc[..n].iter_mut().zip(&radial[..n]).enumerate() {
+        if p[1] == 0.0 {
+            continue;
+        }
+        profile.eval_all(p[0], &mut g);
+        let mut sum = *a;
+        for c in 0..CHUNK_LANES {
+            let s = blocks[c][k];
+            let s = Complex64::new(s.re.widen(), s.im.widen());
+            sum += s * (weights[c] * p[1] * g[c]);
+        }
+        *a = sum;
+    }
 }

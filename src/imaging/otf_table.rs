@@ -65,7 +65,7 @@ pub struct Table1d {
 
 impl Table1d {
     /// Tabulates `f` on `[0, end]` starting from `intervals` intervals and doubling until
-    /// every midpoint is within `tolerance` of `f` (or [`MAX_INTERVALS`] is reached).
+    /// every midpoint is within `tolerance` of `f` (or `MAX_INTERVALS`, 2^22, is reached).
     pub fn build(
         f: impl Fn(f64) -> f64,
         end: f64,
@@ -368,7 +368,7 @@ impl RadialTables {
             values = interleave(&values, &mids);
             n *= 2;
         }
-        let aerosol = wavelengths_um
+        let aerosol: Vec<Option<AerosolFactor>> = wavelengths_um
             .iter()
             .map(
                 |&l| match (&self.aerosol, otf.aerosol_particle_radius_m()) {
@@ -391,6 +391,7 @@ impl RadialTables {
             values,
             cut,
             bands: wavelengths_um.len(),
+            plateau: AerosolPlateau::new(&aerosol),
             aerosol,
         }
     }
@@ -441,6 +442,39 @@ pub struct ChunkProfile {
     bands: usize,
     /// Per band, the aerosol factor if aerosol is on.
     aerosol: Vec<Option<AerosolFactor>>,
+    /// The aerosol factors' plateaus by lane, if aerosol is on.
+    plateau: Option<AerosolPlateau>,
+}
+
+/// Where each lane's aerosol table ends and the constant beyond it, as lanes (unused lanes:
+/// scale 1, end −1, value 1, so they are always "past the end" and multiply by 1).
+#[derive(Debug, Clone, PartialEq)]
+struct AerosolPlateau {
+    scale: [f64; CHUNK_LANES],
+    end: [f64; CHUNK_LANES],
+    beyond: [f64; CHUNK_LANES],
+}
+
+impl AerosolPlateau {
+    /// `None` when no band has an aerosol factor.
+    fn new(aerosol: &[Option<AerosolFactor>]) -> Option<Self> {
+        if aerosol.iter().all(Option::is_none) {
+            return None;
+        }
+        let mut p = AerosolPlateau {
+            scale: [1.0; CHUNK_LANES],
+            end: [-1.0; CHUNK_LANES],
+            beyond: [1.0; CHUNK_LANES],
+        };
+        for (c, a) in aerosol.iter().enumerate() {
+            if let Some(a) = a {
+                p.scale[c] = a.scale;
+                p.end[c] = a.table.end;
+                p.beyond[c] = a.table.beyond;
+            }
+        }
+        Some(p)
+    }
 }
 
 impl ChunkProfile {
@@ -457,6 +491,11 @@ impl ChunkProfile {
     /// Every band's chromatic product at radial frequency `rho` ≥ 0 (cycles/rad) into
     /// `out[..bands]` (lanes beyond are 0): one grid position, one linear interpolation
     /// per lane (vectorised). Beyond the grid's end the last value holds.
+    ///
+    /// The aerosol factor is a table lookup per lane in its own argument `ρλ/a`; past the
+    /// end of its table (its plateau, which for particles of a few µm starts within a few
+    /// cycles/rad of ρ = 0) it is a per-lane constant, and when every lane is there the
+    /// lookups are skipped (the same value: the table returns that constant).
     #[inline(always)]
     pub fn eval_all(&self, rho: f64, out: &mut [f64; CHUNK_LANES]) {
         let t = rho * self.inv_step;
@@ -465,14 +504,29 @@ impl ChunkProfile {
         let last = self.values.len() - 1;
         let i = (t as u32 as usize).min(last - 1);
         let frac = (t - i as f64).min(1.0);
-        let (a, b) = (&self.values[i], &self.values[i + 1]);
+        let [a, b] = self.values[i..i + 2] else {
+            unreachable!("i ≤ last − 1")
+        };
         for c in 0..CHUNK_LANES {
             let v = a[c] + frac * (b[c] - a[c]);
             out[c] = if rho > self.cut[c] { 0.0 } else { v };
         }
-        for (o, aer) in out.iter_mut().zip(&self.aerosol) {
-            if let Some(a) = aer {
-                *o *= a.table.eval(rho * a.scale);
+        if let Some(p) = &self.plateau {
+            let all = p
+                .scale
+                .iter()
+                .zip(&p.end)
+                .fold(true, |all, (s, e)| all & (rho * s > *e));
+            if all {
+                for (o, b) in out.iter_mut().zip(&p.beyond) {
+                    *o *= b;
+                }
+                return;
+            }
+            for (o, aer) in out.iter_mut().zip(&self.aerosol) {
+                if let Some(a) = aer {
+                    *o *= a.table.eval(rho * a.scale);
+                }
             }
         }
     }

@@ -134,7 +134,8 @@ fn tabulated_profiles_match_direct_evaluation_for_every_component() {
 
 /// The engine interpolates the 4 bands of a chunk from ONE common ρ grid
 /// (`RadialTables::chunk_profile`): every band of a chunk matches its direct evaluation to
-/// 1e-6 (for each component case, chunks spanning the range, bands with different cutoffs),
+/// 1e-6 (for each component case, chunks spanning the range, bands with different cutoffs,
+/// through the aerosol cores),
 /// and beyond each band's own aperture cutoff its value is exactly 0.
 #[test]
 fn chunk_profiles_match_direct_evaluation_for_every_band() {
@@ -148,8 +149,12 @@ fn chunk_profiles_match_direct_evaluation_for_every_band() {
             let p = tables.chunk_profile(&otf, &chunk, rho_max);
             assert_eq!(p.bands(), 4);
             let n = 20_000;
-            for j in 0..=n {
-                let rho = rho_max * ((j as f64 + 0.377_1) / (n as f64 + 1.0));
+            // Dense over the whole range, then through the aerosol cores (ρ < a/λ, below
+            // one cycle/rad, where some lanes are past their aerosol table and some not).
+            let rhos = (0..=n)
+                .map(|j| rho_max * ((j as f64 + 0.377_1) / (n as f64 + 1.0)))
+                .chain((0..=4000).map(|j| 10.0 * (j as f64 + 0.377_1) / 4001.0));
+            for rho in rhos {
                 let mut all = [0.0; 4];
                 p.eval_all(rho, &mut all);
                 for (c, lambda) in chunk.iter().enumerate() {

@@ -1,0 +1,127 @@
+//! Where the engine's per-band time goes against its FFT bound, in memory (issue 9).
+//!
+//! `cargo run --release --example bench_phases -- [SIZE] [ROUNDS]` (default 1024, 5).
+//! Builds the imager of the every-component SWIR sensor (`benches/swir_all_components.toml`,
+//! k = 3) for a SIZE² scene and times, per chunk of [`BANDS_PER_CHUNK`] bands of distinct
+//! data (so each chunk streams from memory as in a run):
+//! - **rows**: the engine's row pass (padding + row transforms into the block-major layout),
+//!   the chunk's bands in parallel, as `Imager::mean_electrons` runs it;
+//! - **columns + OTF + accumulate**: the chunk's profile and [`accumulate_chunk`];
+//! - **bound**: the same number of forward transforms `RealFft2::forward` of one frame (the
+//!   FFT bound of `bench_run`).
+//!
+//! Prints the medians over all chunks of all rounds, in ms per band, and engine/bound.
+
+mod bench_common;
+use bench_common::median;
+use std::time::Instant;
+
+use ndarray::Array2;
+use num_complex::{Complex, Complex64};
+use rayon::prelude::*;
+
+use eoir::imaging::fft::RealFft2;
+use eoir::imaging::{accumulate_chunk, Imager, BANDS_PER_CHUNK, DEFAULT_WRAP_TOLERANCE};
+use eoir::scene::{CubeMeta, Geometry, RadianceUnits};
+use eoir::sensor::{Sensor, SensorConfig};
+
+const SENSOR: &str = include_str!("../benches/swir_all_components.toml");
+const CHUNKS: usize = 8;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let mut args = std::env::args().skip(1);
+    let n: usize = args.next().map_or(Ok(1024), |a| a.parse())?;
+    let rounds: usize = args.next().map_or(Ok(5), |a| a.parse())?;
+    let det = n / 3;
+    let sizes = [
+        format!("detector.rows={det}"),
+        format!("detector.cols={det}"),
+    ];
+    let cfg = SensorConfig::from_toml_str(SENSOR, "bench", ".".into(), &sizes)?;
+    let sensor = Sensor::build(&cfg)?;
+    let bands = CHUNKS * BANDS_PER_CHUNK;
+    let wl: Vec<f64> = (0..bands)
+        .map(|i| 1.0 + 0.7 * i as f64 / (bands - 1) as f64)
+        .collect();
+    let meta = CubeMeta {
+        wavelength_um: wl.clone(),
+        fwhm_um: None,
+        units: RadianceUnits::SpectralPerUm,
+        geometry: Some(Geometry::from_ifov(50e-6, 50e-6, n, n)),
+        rows: n,
+        cols: n,
+    };
+    let im = Imager::new(
+        &sensor,
+        &meta,
+        &meta.geometry.unwrap(),
+        DEFAULT_WRAP_TOLERANCE,
+    )?;
+    let (ny, nx) = (im.sampling().y.padded_len, im.sampling().x.padded_len);
+    let hc = nx / 2 + 1;
+    let fft = RealFft2::<f32>::new(ny, nx);
+    let planes: Vec<Array2<f32>> = (0..bands)
+        .map(|b| {
+            Array2::from_shape_fn((n, n), |(r, c)| {
+                let (r, c, b) = (r as f32, c as f32, b as f32);
+                10.0 + 3.0 * (0.071 * r + 0.013 * c + 0.1 * b).cos()
+                    + ((r * 0.77 + c * 1.31 + b).sin() * 43_758.547).fract().abs()
+            })
+        })
+        .collect();
+    let zero = Complex::new(0.0f32, 0.0);
+    let mut rowspecs = vec![vec![zero; ny * hc]; BANDS_PER_CHUNK];
+    let mut acc = vec![Complex64::new(0.0, 0.0); ny * hc];
+    let mut frame = Array2::from_shape_fn((ny, nx), |(r, c)| ((31 * r + 17 * c) % 101) as f32);
+    let mut spec = Array2::<Complex<f32>>::zeros(fft.spectrum_shape());
+    let mut scratch = Vec::new();
+    let weights = vec![1.0; BANDS_PER_CHUNK];
+    let (mut rows_t, mut cols_t, mut bound_t) = (Vec::new(), Vec::new(), Vec::new());
+    for round in 0..=rounds {
+        for (ci, chunk) in planes.chunks(BANDS_PER_CHUNK).enumerate() {
+            let t0 = Instant::now();
+            rowspecs
+                .par_iter_mut()
+                .zip(chunk.par_iter())
+                .for_each(|(rs, p)| im.rows_forward_band(&fft, p.view(), rs));
+            let t1 = Instant::now();
+            let profile = im.chunk_profile(&wl[ci * BANDS_PER_CHUNK..(ci + 1) * BANDS_PER_CHUNK]);
+            accumulate_chunk(
+                &fft,
+                &mut rowspecs,
+                &weights,
+                &profile,
+                im.radial_samples(),
+                &mut acc,
+            );
+            let t2 = Instant::now();
+            for _ in 0..BANDS_PER_CHUNK {
+                fft.forward(&mut frame, &mut spec, &mut scratch);
+            }
+            let t3 = Instant::now();
+            if round > 0 {
+                let per_band =
+                    |d: std::time::Duration| d.as_secs_f64() * 1e3 / BANDS_PER_CHUNK as f64;
+                rows_t.push(per_band(t1 - t0));
+                cols_t.push(per_band(t2 - t1));
+                bound_t.push(per_band(t3 - t2));
+            }
+        }
+    }
+    std::hint::black_box((&acc, &spec));
+    let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
+    println!(
+        "minima: rows {:.3}, columns+OTF+accumulate {:.3}, bound {:.3} ms/band",
+        min(&rows_t),
+        min(&cols_t),
+        min(&bound_t)
+    );
+    let (r, c, b) = (median(rows_t), median(cols_t), median(bound_t));
+    println!(
+        "{n}² scene, {ny}×{nx} frame, {} threads: rows {r:.3} ms/band, columns+OTF+accumulate {c:.3} ms/band, engine {:.3} ms/band; FFT bound {b:.3} ms/band; engine/bound {:.2}",
+        rayon::current_num_threads(),
+        r + c,
+        (r + c) / b
+    );
+    Ok(())
+}
