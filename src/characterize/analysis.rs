@@ -1,5 +1,5 @@
 //! EMVA 1288 (Release 4.0 Linear) analysis of an acquisition set described by a
-//! [`Descriptor`](super::descriptor::Descriptor).
+//! [`Descriptor`].
 //!
 //! With y the pixel value (DN), per series of the set:
 //!

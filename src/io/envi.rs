@@ -793,7 +793,7 @@ impl EnviReader {
 }
 
 /// Frames up to this size (bytes of the data file) are read pixel-interleaved directly,
-/// whole, for every chunk of bands; larger BIP frames go through a [`BandSpill`] (64 MiB).
+/// whole, for every chunk of bands; larger BIP frames go through a `BandSpill` (64 MiB).
 pub const BIP_DIRECT_FRAME_BYTES: u64 = 64 << 20;
 
 impl EnviReader {

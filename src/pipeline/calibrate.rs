@@ -28,9 +28,9 @@ const NETD_RELATIVE_PRECISION: f64 = 0.005;
 const NETD_MAX_FRAMES: usize = 16;
 
 /// The frames and rows of the report's measured NETD for a `rows × cols` detector: the
-/// cheapest sample reaching [`NETD_RELATIVE_PRECISION`] ([`NetdSample::for_precision`]:
+/// cheapest sample reaching `NETD_RELATIVE_PRECISION` ([`NetdSample::for_precision`]:
 /// 2 frames of 55 evenly spaced rows of a 384 × 288 array; every row and 5 frames of a
-/// 64 × 80 one), at most [`NETD_MAX_FRAMES`] frames.
+/// 64 × 80 one), at most `NETD_MAX_FRAMES` frames.
 ///
 /// Errors: an empty detector.
 pub fn netd_sample(rows: usize, cols: usize) -> Result<NetdSample> {
