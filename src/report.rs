@@ -234,6 +234,9 @@ pub struct ResidualNonuniformity {
 /// `timings_s` of the report, seconds.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct Timings {
+    /// Preparing the imaging chain (spectral weights, padding, frequency grid, the
+    /// wavelength-independent transfer function on the grid, component tables, FFT plans).
+    pub setup: f64,
     /// Reading bands.
     pub read: f64,
     /// Forward FFTs.
@@ -283,6 +286,8 @@ pub struct RunFacts<'a> {
     pub calibration: Option<CalibrationReport>,
     /// Warnings collected.
     pub warnings: Vec<String>,
+    /// Seconds preparing the imaging chain.
+    pub setup_s: f64,
     /// Seconds in the detector stage.
     pub detector_s: f64,
     /// Seconds in the calibration stage.
@@ -406,6 +411,7 @@ impl RunReport {
                 forward_fft: f.imaging.fft_s,
                 otf_and_accumulate: f.imaging.otf_s,
                 inverse_and_sampling: f.imaging.inverse_s,
+                setup: f.setup_s,
                 detector: f.detector_s,
                 calibration: f.calibration_s,
                 total: f.total_s,

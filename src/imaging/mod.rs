@@ -367,16 +367,13 @@ pub fn pad_width(
     let fft = realfft::RealFftPlanner::<f64>::new().plan_fft_inverse(m);
     let mut worst = 1usize;
     for &lambda in wavelengths_um {
+        let r0 = otf.fried_r0_m(lambda);
         let mut spec: Vec<Complex64> = (0..m / 2 + 1)
+            .into_par_iter()
             .map(|u| {
                 let f = u as f64 / (m as f64 * spacing_rad);
                 let (fx, fy) = if along_x { (f, 0.0) } else { (0.0, f) };
-                let v: f64 = otf
-                    .components()
-                    .iter()
-                    .filter(|c| **c != Component::Aerosol)
-                    .map(|c| otf.component(*c, fx, fy, lambda))
-                    .product();
+                let v = otf.product_where(fx, fy, lambda, r0, |c| c != Component::Aerosol);
                 Complex64::new(v, 0.0)
             })
             .collect();
@@ -498,12 +495,16 @@ impl Imager {
             y: PadMap::new(meta.rows, sampling.y.pad_before, sampling.y.padded_len),
             x: PadMap::new(meta.cols, sampling.x.pad_before, sampling.x.padded_len),
         };
-        let achromatic = otf.on_grid(&grid).achromatic().clone();
-        let radial: Vec<[f64; 2]> = (0..grid.fx.len())
-            .flat_map(|u| (0..grid.fy.len()).map(move |v| (v, u)))
-            .map(|(v, u)| [grid.fx[u].hypot(grid.fy[v]), achromatic[[v, u]]])
+        let achromatic = otf.on_grid(&grid).into_achromatic();
+        let ny = grid.fy.len();
+        let radial: Vec<[f64; 2]> = (0..grid.fx.len() * ny)
+            .into_par_iter()
+            .map(|i| {
+                let (u, v) = (i / ny, i % ny);
+                [grid.fx[u].hypot(grid.fy[v]), achromatic[[v, u]]]
+            })
             .collect();
-        let rho_max = radial.iter().map(|p| p[0]).fold(0.0, f64::max);
+        let rho_max = radial.par_iter().map(|p| p[0]).reduce(|| 0.0, f64::max);
         let (lo, hi) = active
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), l| {
@@ -620,19 +621,26 @@ impl Imager {
                 let planes = &planes;
                 scope.spawn(move |_| {
                     let t1 = Instant::now();
-                    rs.par_iter_mut()
-                        .zip(planes.par_iter())
-                        .for_each(|(rs, plane)| self.rows_forward_band(fft, plane.view(), rs));
+                    let wavelengths: Vec<f64> = chunk
+                        .iter()
+                        .map(|&b| self.weights.wavelength_um[b])
+                        .collect();
+                    // The chunk's OTF profile is built alongside its row pass.
+                    let ((), profile) = rayon::join(
+                        || {
+                            rs.par_iter_mut()
+                                .zip(planes.par_iter())
+                                .for_each(|(rs, plane)| {
+                                    self.rows_forward_band(fft, plane.view(), rs)
+                                })
+                        },
+                        || self.chunk_profile(&wavelengths),
+                    );
                     let t2 = Instant::now();
                     let weights: Vec<f64> = chunk
                         .iter()
                         .map(|&b| self.weights.electrons_per_unit[b])
                         .collect();
-                    let wavelengths: Vec<f64> = chunk
-                        .iter()
-                        .map(|&b| self.weights.wavelength_um[b])
-                        .collect();
-                    let profile = self.chunk_profile(&wavelengths);
                     accumulate_chunk(
                         fft,
                         &mut rs[..chunk.len()],

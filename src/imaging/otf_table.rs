@@ -30,6 +30,8 @@
 //! 7e-7 < [`TABLE_TOLERANCE`] = 1e-6 absolute, which tests/all/otf_table.rs checks on dense
 //! frequency and wavelength grids for every component.
 
+use rayon::prelude::*;
+
 use crate::optics;
 use crate::sensor::{Component, SystemOtf};
 
@@ -67,7 +69,7 @@ impl Table1d {
     /// Tabulates `f` on `[0, end]` starting from `intervals` intervals and doubling until
     /// every midpoint is within `tolerance` of `f` (or `MAX_INTERVALS`, 2^22, is reached).
     pub fn build(
-        f: impl Fn(f64) -> f64,
+        f: impl Fn(f64) -> f64 + Sync,
         end: f64,
         beyond: f64,
         intervals: usize,
@@ -78,7 +80,10 @@ impl Table1d {
         loop {
             let step = end / n as f64;
             // Midpoints are the new samples of the doubled table: compute them once.
-            let mids: Vec<f64> = (0..n).map(|i| f((i as f64 + 0.5) * step)).collect();
+            let mids: Vec<f64> = (0..n)
+                .into_par_iter()
+                .map(|i| f((i as f64 + 0.5) * step))
+                .collect();
             let worst = mids
                 .iter()
                 .enumerate()
@@ -135,9 +140,12 @@ fn interleave<V: Copy>(values: &[V], mids: &[V]) -> Vec<V> {
     finer
 }
 
-fn sample(f: &impl Fn(f64) -> f64, end: f64, n: usize) -> Vec<f64> {
+fn sample(f: &(impl Fn(f64) -> f64 + Sync), end: f64, n: usize) -> Vec<f64> {
     let step = end / n as f64;
-    (0..=n).map(|i| f(i as f64 * step)).collect()
+    (0..=n)
+        .into_par_iter()
+        .map(|i| f(i as f64 * step))
+        .collect()
 }
 
 /// The chromatic components of a [`SystemOtf`] as 1-D tables in their λ-scaled arguments,
@@ -337,6 +345,7 @@ impl RadialTables {
         let sample = |n: usize| -> Vec<[f64; CHUNK_LANES]> {
             let step = end / n as f64;
             (0..=n)
+                .into_par_iter()
                 .map(|i| {
                     let mut v = [0.0; CHUNK_LANES];
                     f(i as f64 * step, &mut v);
@@ -348,6 +357,7 @@ impl RadialTables {
         loop {
             let step = end / n as f64;
             let mids: Vec<[f64; CHUNK_LANES]> = (0..n)
+                .into_par_iter()
                 .map(|i| {
                     let mut v = [0.0; CHUNK_LANES];
                     f((i as f64 + 0.5) * step, &mut v);

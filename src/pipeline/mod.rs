@@ -276,7 +276,9 @@ pub fn run(
     let geometry = input_geometry(options, &meta)?;
     let mut warnings = reader.warnings();
     warnings.extend(sensor.warnings().iter().cloned());
+    let t_setup = Instant::now();
     let imaging = ImagingStage::new(sensor, &meta, &geometry, options)?;
+    let setup_s = t_setup.elapsed().as_secs_f64();
     warnings.extend(imaging.sampling().warnings.iter().cloned());
     warnings.extend(imaging.unread_bands_warning(&meta));
     warnings.extend(sensor.detector().warnings().iter().cloned());
@@ -318,6 +320,7 @@ pub fn run(
         first_dn: &frames[0].dn,
         calibration,
         warnings: warnings.clone(),
+        setup_s,
         detector_s: done.detector_s,
         calibration_s,
         total_s: t_start.elapsed().as_secs_f64(),

@@ -286,6 +286,25 @@ impl SystemOtf {
         self.component_unchecked(c, fx, fy, wavelength_um, self.fried_r0_m(wavelength_um))
     }
 
+    /// The product of the enabled components for which `keep` is true, in the order of
+    /// [`SystemOtf::components`], at (fx, fy) cycles/rad and wavelength λ, with `r0_m` the
+    /// Fried parameter at λ ([`SystemOtf::fried_r0_m`], computed once by the caller for
+    /// many frequencies). Each factor is [`SystemOtf::component`]'s value.
+    pub fn product_where(
+        &self,
+        fx: f64,
+        fy: f64,
+        wavelength_um: f64,
+        r0_m: Option<f64>,
+        keep: impl Fn(Component) -> bool,
+    ) -> f64 {
+        self.components
+            .iter()
+            .filter(|c| keep(**c))
+            .map(|c| self.component_unchecked(*c, fx, fy, wavelength_um, r0_m))
+            .product()
+    }
+
     fn component_unchecked(
         &self,
         c: Component,
@@ -295,11 +314,12 @@ impl SystemOtf {
         r0_m: Option<f64>,
     ) -> f64 {
         let lambda_m = wavelength_um * 1e-6;
-        let f = fx.hypot(fy);
-        let x = f / self.cutoff_cy_per_rad(wavelength_um);
+        // Radial frequency and its ratio to the cutoff, for the radial components only.
+        let f = || fx.hypot(fy);
+        let x = || f() / self.cutoff_cy_per_rad(wavelength_um);
         match c {
-            Component::Diffraction => optics::diffraction_obscured(x, self.obscuration_ratio),
-            Component::Aberration => optics::aberration_shannon(x, self.aberration_rms_waves),
+            Component::Diffraction => optics::diffraction_obscured(x(), self.obscuration_ratio),
+            Component::Aberration => optics::aberration_shannon(x(), self.aberration_rms_waves),
             Component::Defocus => {
                 let w020 = match self.defocus {
                     Some(DefocusAmount::Waves(w)) => w,
@@ -310,7 +330,7 @@ impl SystemOtf {
                 };
                 // 0 beyond the cutoff D/λ (optics::defocus): no aperture term passes
                 // anything there, even with `[diffraction] enabled = false`.
-                optics::defocus(x, w020)
+                optics::defocus(x(), w020)
             }
             Component::Detector => optics::detector_footprint(
                 fx,
@@ -327,12 +347,12 @@ impl SystemOtf {
                 motion::gaussian(fx, fy, self.gaussian_sigma_rad.0, self.gaussian_sigma_rad.1)
             }
             Component::Turbulence => match r0_m {
-                Some(r0) => atmosphere::turbulence_long_exposure(f, lambda_m, r0),
+                Some(r0) => atmosphere::turbulence_long_exposure(f(), lambda_m, r0),
                 None => 1.0,
             },
             Component::Aerosol => match &self.aerosol {
                 Some(a) => atmosphere::aerosol(
-                    f,
+                    f(),
                     lambda_m,
                     a.absorption_per_m,
                     a.scattering_per_m,
@@ -342,7 +362,60 @@ impl SystemOtf {
                 ),
                 None => 1.0,
             },
-            Component::Measured => self.measured.as_ref().map_or(1.0, |m| m.eval(f)),
+            Component::Measured => self.measured.as_ref().map_or(1.0, |m| m.eval(f())),
+        }
+    }
+
+    /// Multiplies every sample of `acc` (`[fy, fx]` of `grid`) by achromatic component `c`
+    /// (see [`SystemOtf::on_grid`]). Rows in parallel.
+    fn multiply_on_grid(&self, c: Component, grid: &FrequencyGrid, acc: &mut Array2<f64>) {
+        let (fx, fy) = (&grid.fx, &grid.fy);
+        let mut rows = |each: &(dyn Fn(f64, f64) -> f64 + Sync), cols: &[f64], ys: &[f64]| {
+            Zip::from(acc.rows_mut())
+                .and(ys)
+                .par_for_each(|mut row, b| {
+                    for (v, a) in row.iter_mut().zip(cols) {
+                        *v *= each(*a, *b);
+                    }
+                });
+        };
+        match c {
+            Component::Detector => {
+                // optics::detector_footprint: sinc(fx·wx/F) · sinc(fy·wy/F).
+                let fl = self.focal_length_m;
+                let cx: Vec<f64> = fx
+                    .iter()
+                    .map(|f| optics::sinc(f * self.active_width_x_m / fl))
+                    .collect();
+                let cy: Vec<f64> = fy
+                    .iter()
+                    .map(|f| optics::sinc(f * self.active_width_y_m / fl))
+                    .collect();
+                rows(&|a, b| a * b, &cx, &cy);
+            }
+            Component::Motion => {
+                // motion::linear_motion: sinc((fx cos θ + fy sin θ) · d).
+                let (sin_t, cos_t) = self.smear_direction_rad.sin_cos();
+                let d = self.smear_rad;
+                let cx: Vec<f64> = fx.iter().map(|f| f * cos_t).collect();
+                let cy: Vec<f64> = fy.iter().map(|f| f * sin_t).collect();
+                rows(&|a, b| optics::sinc((a + b) * d), &cx, &cy);
+            }
+            Component::Jitter | Component::Gaussian => {
+                let (sx, sy) = if c == Component::Jitter {
+                    (self.jitter_sigma_rad, self.jitter_sigma_rad)
+                } else {
+                    self.gaussian_sigma_rad
+                };
+                let square = |s: f64| move |f: &f64| (s * f) * (s * f);
+                let cx: Vec<f64> = fx.iter().map(square(sx)).collect();
+                let cy: Vec<f64> = fy.iter().map(square(sy)).collect();
+                rows(&motion::gaussian_of_squares, &cx, &cy);
+            }
+            _ => {
+                let each = |a: f64, b: f64| self.component_unchecked(c, a, b, 1.0, None);
+                rows(&each, fx, fy);
+            }
         }
     }
 
@@ -355,11 +428,7 @@ impl SystemOtf {
         chromatic: bool,
         r0: Option<f64>,
     ) -> f64 {
-        self.components
-            .iter()
-            .filter(|c| c.is_chromatic() == chromatic)
-            .map(|c| self.component_unchecked(*c, fx, fy, wavelength_um, r0))
-            .product()
+        self.product_where(fx, fy, wavelength_um, r0, |c| c.is_chromatic() == chromatic)
     }
 
     /// The system OTF (product of all enabled components) at one frequency and wavelength.
@@ -371,11 +440,19 @@ impl SystemOtf {
 
     /// Prepares evaluation on a frequency grid: the wavelength-independent product is
     /// computed here, once.
+    ///
+    /// The product is taken component by component, in the order of
+    /// [`SystemOtf::components`] (as [`SystemOtf::evaluate`] takes it). The separable
+    /// components are evaluated from terms computed once per row and per column (detector
+    /// footprint: a product of two sincs; linear motion: the sinc of a sum; jitter and
+    /// Gaussian: the exponential of a sum), with the same operations as their pointwise
+    /// functions, so every value equals the pointwise product bit for bit; the others
+    /// sample by sample.
     pub fn on_grid(&self, grid: &FrequencyGrid) -> GridOtf<'_> {
-        let mut achromatic = Array2::<f64>::zeros((grid.fy.len(), grid.fx.len()));
-        Zip::indexed(&mut achromatic).par_for_each(|(j, k), v| {
-            *v = self.product(grid.fx[k], grid.fy[j], 1.0, false, None);
-        });
+        let mut achromatic = Array2::<f64>::ones((grid.fy.len(), grid.fx.len()));
+        for c in self.components.iter().filter(|c| !c.is_chromatic()) {
+            self.multiply_on_grid(*c, grid, &mut achromatic);
+        }
         GridOtf {
             otf: self,
             fx: grid.fx.clone(),
@@ -429,6 +506,11 @@ impl GridOtf<'_> {
     /// The wavelength-independent product (detector, motion, jitter, Gaussian, measured).
     pub fn achromatic(&self) -> &Array2<f64> {
         &self.achromatic
+    }
+
+    /// [`GridOtf::achromatic`], by value (no copy of the frame-sized array).
+    pub fn into_achromatic(self) -> Array2<f64> {
+        self.achromatic
     }
 
     /// Writes the full system OTF at `wavelength_um` into `out` (shape `[fy, fx]`).

@@ -193,7 +193,10 @@ fn run_writes_every_product_and_the_report() {
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(report["sampling"]["ratio_x"].as_f64().unwrap().round(), 1.0);
     assert!(report["detector"]["gain_dn_per_e"].as_f64().unwrap() > 0.0);
-    assert!(report["timings_s"]["total"].as_f64().unwrap() > 0.0);
+    let total = report["timings_s"]["total"].as_f64().unwrap();
+    assert!(total > 0.0);
+    let setup = report["timings_s"]["setup"].as_f64().unwrap();
+    assert!(setup > 0.0 && setup < total, "setup {setup} s of {total} s");
     // A flat scene gives a flat image; the resolved config loads back as a sensor file.
     let e = eoir::io::raster::read_tiff_f32(&out.join("electrons_mean.tiff")).unwrap();
     let (lo, hi) = e
