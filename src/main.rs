@@ -75,6 +75,15 @@ fn main() -> ExitCode {
 /// outputs, and the memory limit.
 fn setup(cli: &Cli) -> anyhow::Result<()> {
     eoir::io::output::install_signal_handler()?;
+    // The main thread is one of rayon's workers (the pool keeps RAYON_NUM_THREADS or one
+    // thread per core, this one included): while it reads the next chunk of bands the
+    // other workers transform the current one, and when it is done reading it helps with
+    // them, instead of a reading thread competing with a full pool for the cores (-14 %
+    // engine time at 1024² × 128 on 2 cores, BENCHMARKS.md).
+    rayon::ThreadPoolBuilder::new()
+        .use_current_thread()
+        .build_global()
+        .map_err(|e| anyhow::anyhow!("could not start the thread pool: {e}"))?;
     if let Some(m) = &cli.max_memory {
         eoir::limits::set_max_memory_bytes(eoir::limits::parse_bytes(m)?)?;
     }
