@@ -14,20 +14,15 @@
 //! `EOIR_BENCH_IN_FLIGHT` (N, default the number of CPUs).
 
 mod bench_common;
-use bench_common::{median, peak_rss_mib, time_v_field};
+use bench_common::{median, peak_rss_mib, swir_sensor_config, time_v_field};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use eoir::sensor::SensorConfig;
-
 /// Scene sampling, rad, and detector/scene ratio (as examples/bench_run.rs).
 const SCENE_IFOV_RAD: f64 = 50e-6;
 const K: usize = 3;
-
-/// The all-components SWIR sensor; the detector size is set with overrides.
-const SENSOR: &str = include_str!("../benches/swir_all_components.toml");
 
 fn loadavg() -> String {
     std::fs::read_to_string("/proc/loadavg")
@@ -150,11 +145,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let case = dir.join(format!("{n}x{bands}x{frames}"));
         std::fs::create_dir_all(&case)?;
         let det = n / K;
-        let overrides = [
-            format!("detector.rows={det}"),
-            format!("detector.cols={det}"),
-        ];
-        let config = SensorConfig::from_toml_str(SENSOR, "bench", PathBuf::from("."), &overrides)?;
+        let config = swir_sensor_config(det)?;
         let sensor = case.join("sensor.toml");
         std::fs::write(&sensor, config.to_toml_string()?)?;
         let input = case.join("seq.npy");

@@ -7,6 +7,8 @@
 //! parallel efficiency (speed-up / threads). On a shared machine the CPU time is the more
 //! stable figure; figures go into BENCHMARKS.md.
 
+mod bench_common;
+use bench_common::{swir_meta, swir_sensor_config};
 use std::time::Instant;
 
 use ndarray::Array3;
@@ -14,10 +16,8 @@ use ndarray::Array3;
 use eoir::imaging::fft::FftPrecision;
 use eoir::imaging::{Imager, DEFAULT_WRAP_TOLERANCE};
 use eoir::io::MemoryCube;
-use eoir::scene::{Cube, CubeMeta, Geometry, RadianceUnits};
-use eoir::sensor::{Sensor, SensorConfig};
-
-const SENSOR: &str = include_str!("../benches/swir_all_components.toml");
+use eoir::scene::Cube;
+use eoir::sensor::Sensor;
 
 /// CPU seconds (user + system) of this process so far.
 fn cpu_s() -> f64 {
@@ -41,13 +41,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for c in cases {
         let (n, bands) = c.split_once(':').ok_or("cases are SIZE:BANDS")?;
         let (n, bands): (usize, usize) = (n.parse()?, bands.parse()?);
-        let det = n / 3;
-        let sizes = [
-            format!("detector.rows={det}"),
-            format!("detector.cols={det}"),
-        ];
-        let cfg = SensorConfig::from_toml_str(SENSOR, "bench", ".".into(), &sizes)?;
-        let sensor = Sensor::build(&cfg)?;
+        let sensor = Sensor::build(&swir_sensor_config(n / 3)?)?;
         let wl: Vec<f64> = (0..bands)
             .map(|i| 0.95 + 0.8 * i as f64 / (bands - 1) as f64)
             .collect();
@@ -56,14 +50,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             10.0 + 3.0 * (0.071 * r + 0.013 * c + 0.1 * b).cos()
                 + ((r * 0.77 + c * 1.31).sin() * 43_758.547).fract()
         });
-        let meta = CubeMeta {
-            wavelength_um: wl,
-            fwhm_um: None,
-            units: RadianceUnits::SpectralPerUm,
-            geometry: Some(Geometry::from_ifov(50e-6, 50e-6, n, n)),
-            rows: n,
-            cols: n,
-        };
+        let meta = swir_meta(n, wl);
         let cube = Cube::new(data, meta.clone())?;
         for precision in [FftPrecision::F32, FftPrecision::F64] {
             let mut one = f64::NAN;

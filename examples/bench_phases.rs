@@ -13,7 +13,7 @@
 //! Prints the medians over all chunks of all rounds, in ms per band, and engine/bound.
 
 mod bench_common;
-use bench_common::median;
+use bench_common::{median, swir_meta, swir_sensor_config};
 use std::time::Instant;
 
 use ndarray::Array2;
@@ -22,35 +22,20 @@ use rayon::prelude::*;
 
 use eoir::imaging::fft::RealFft2;
 use eoir::imaging::{accumulate_chunk, Imager, BANDS_PER_CHUNK, DEFAULT_WRAP_TOLERANCE};
-use eoir::scene::{CubeMeta, Geometry, RadianceUnits};
-use eoir::sensor::{Sensor, SensorConfig};
+use eoir::sensor::Sensor;
 
-const SENSOR: &str = include_str!("../benches/swir_all_components.toml");
 const CHUNKS: usize = 8;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
     let n: usize = args.next().map_or(Ok(1024), |a| a.parse())?;
     let rounds: usize = args.next().map_or(Ok(5), |a| a.parse())?;
-    let det = n / 3;
-    let sizes = [
-        format!("detector.rows={det}"),
-        format!("detector.cols={det}"),
-    ];
-    let cfg = SensorConfig::from_toml_str(SENSOR, "bench", ".".into(), &sizes)?;
-    let sensor = Sensor::build(&cfg)?;
+    let sensor = Sensor::build(&swir_sensor_config(n / 3)?)?;
     let bands = CHUNKS * BANDS_PER_CHUNK;
     let wl: Vec<f64> = (0..bands)
         .map(|i| 1.0 + 0.7 * i as f64 / (bands - 1) as f64)
         .collect();
-    let meta = CubeMeta {
-        wavelength_um: wl.clone(),
-        fwhm_um: None,
-        units: RadianceUnits::SpectralPerUm,
-        geometry: Some(Geometry::from_ifov(50e-6, 50e-6, n, n)),
-        rows: n,
-        cols: n,
-    };
+    let meta = swir_meta(n, wl.clone());
     let im = Imager::new(
         &sensor,
         &meta,

@@ -16,7 +16,7 @@
 //! this many voxels; default 2^28).
 
 mod bench_common;
-use bench_common::{median, peak_rss_mib};
+use bench_common::{median, peak_rss_mib, swir_meta, swir_sensor_config};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
@@ -26,23 +26,12 @@ use num_complex::Complex;
 
 use eoir::imaging::fft::{FftFloat, RealFft2};
 use eoir::imaging::{Imager, DEFAULT_WRAP_TOLERANCE};
-use eoir::scene::{Cube, CubeMeta, Geometry, RadianceUnits};
-use eoir::sensor::{Sensor, SensorConfig};
+use eoir::scene::Cube;
+use eoir::sensor::Sensor;
 
 /// Scene sampling, rad, and detector/scene ratio.
 const SCENE_IFOV_RAD: f64 = 50e-6;
 const K: usize = 3;
-
-/// The all-components SWIR sensor (benches/swir_all_components.toml); the detector size
-/// is set with overrides.
-const SENSOR: &str = include_str!("../benches/swir_all_components.toml");
-
-fn sensor_overrides(det: usize) -> [String; 2] {
-    [
-        format!("detector.rows={det}"),
-        format!("detector.cols={det}"),
-    ]
-}
 
 /// Distinct frames the streamed FFT bound cycles through (8 inputs and 8 outputs of a
 /// 1080² f32 frame are 75 MB, more than the last-level cache).
@@ -162,20 +151,12 @@ fn run(
     let case = set.dir.join(format!("{n}x{bands}-{}", set.interleave));
     std::fs::create_dir_all(&case)?;
     let sensor_path = case.join("sensor.toml");
-    let config =
-        SensorConfig::from_toml_str(SENSOR, "bench", PathBuf::from("."), &sensor_overrides(det))?;
+    let config = swir_sensor_config(det)?;
     std::fs::write(&sensor_path, config.to_toml_string()?)?;
     let wl: Vec<f64> = (0..bands)
         .map(|i| 0.95 + 0.8 * i as f64 / (bands - 1) as f64)
         .collect();
-    let meta = CubeMeta {
-        wavelength_um: wl.clone(),
-        fwhm_um: None,
-        units: RadianceUnits::SpectralPerUm,
-        geometry: Some(Geometry::from_ifov(SCENE_IFOV_RAD, SCENE_IFOV_RAD, n, n)),
-        rows: n,
-        cols: n,
-    };
+    let meta = swir_meta(n, wl.clone());
     let hdr = case.join("cube.hdr");
     if !hdr.exists() {
         // A texture: sums of incommensurate cosines, different per band.
@@ -195,8 +176,7 @@ fn run(
         std::fs::File::open(hdr.with_extension("img"))?.sync_all()?;
     }
     // The engine's padded frame and spectral weights.
-    let config =
-        SensorConfig::from_toml_str(SENSOR, "bench", PathBuf::from("."), &sensor_overrides(det))?;
+    let config = swir_sensor_config(det)?;
     let sensor = Sensor::build(&config)?;
     let imager = Imager::new(
         &sensor,

@@ -32,3 +32,27 @@ pub fn time_v_field(stderr: &str, key: &str) -> f64 {
 pub fn peak_rss_mib(stderr: &str) -> f64 {
     time_v_field(stderr, "Maximum resident set size (kbytes): ") / 1024.0
 }
+
+/// The every-component SWIR sensor of the performance issue
+/// (`benches/swir_all_components.toml`) with a `det × det` detector.
+pub fn swir_sensor_config(det: usize) -> eoir::Result<eoir::sensor::SensorConfig> {
+    const SENSOR: &str = include_str!("../../benches/swir_all_components.toml");
+    let overrides = [
+        format!("detector.rows={det}"),
+        format!("detector.cols={det}"),
+    ];
+    eoir::sensor::SensorConfig::from_toml_str(SENSOR, "bench", ".".into(), &overrides)
+}
+
+/// Metadata of an `n × n` cube of 50 µrad pixels in W m⁻² sr⁻¹ µm⁻¹ with the given
+/// wavelengths.
+pub fn swir_meta(n: usize, wavelength_um: Vec<f64>) -> eoir::scene::CubeMeta {
+    eoir::scene::CubeMeta {
+        wavelength_um,
+        fwhm_um: None,
+        units: eoir::scene::RadianceUnits::SpectralPerUm,
+        geometry: Some(eoir::scene::Geometry::from_ifov(50e-6, 50e-6, n, n)),
+        rows: n,
+        cols: n,
+    }
+}
