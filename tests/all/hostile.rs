@@ -242,6 +242,23 @@ fn envi_header(samples: u64, lines: u64, bands: usize) -> String {
     )
 }
 
+/// `eoir characterize --simulate` (MultimIR, 16-pixel window) into `dir/set`, which must
+/// succeed: the acquisition set the EMVA cases then damage.
+fn simulate_emva_set(dir: &Path) {
+    let args = [
+        "characterize",
+        "--simulate",
+        "--sensor",
+        "multimir",
+        "--window",
+        "16",
+        "-o",
+        "set",
+    ];
+    let o = eoir(dir, &args);
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+}
+
 fn mkfifo(path: &Path) {
     let c = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).unwrap();
     // SAFETY: plain libc call with a valid NUL-terminated path.
@@ -1143,20 +1160,7 @@ fn images_tables_and_descriptors_of_every_command_are_bounded_before_allocating(
     }
 
     // EMVA 1288 descriptor: the image size it states is budgeted before the analysis.
-    let o = eoir(
-        d,
-        &[
-            "characterize",
-            "--simulate",
-            "--sensor",
-            "multimir",
-            "--window",
-            "16",
-            "-o",
-            "set",
-        ],
-    );
-    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    simulate_emva_set(d);
     let desc = std::fs::read_to_string(d.join("set/descriptor.txt")).unwrap();
     assert!(desc.contains("\nn 14 16 16\n"), "{desc}");
     std::fs::write(
@@ -1234,20 +1238,7 @@ fn special_files_given_to_any_command_are_refused_without_blocking() {
     }
 
     // `characterize`: the descriptor, and an image it lists, as FIFOs.
-    let o = eoir(
-        d,
-        &[
-            "characterize",
-            "--simulate",
-            "--sensor",
-            "multimir",
-            "--window",
-            "16",
-            "-o",
-            "set",
-        ],
-    );
-    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    simulate_emva_set(d);
     std::fs::remove_file(d.join("set/dark/d0_0.png")).unwrap();
     mkfifo(&d.join("set/dark/d0_0.png"));
     refused(
