@@ -21,8 +21,10 @@
 //! `(j − (n_d − 1)/2)·ifov_d`, with `ifov_d = pitch / focal length`. The detector field of
 //! view is centred in the scene's and must lie inside it.
 
+mod accumulate;
 pub mod fft;
 pub mod otf_table;
+pub use accumulate::accumulate_chunk;
 mod padding;
 
 use std::time::Instant;
@@ -40,7 +42,7 @@ use crate::scene::{CubeMeta, Geometry, RadianceUnits};
 use crate::sensor::{Component, FrequencyGrid, Sensor, SystemOtf};
 use crate::spectrum::Spectrum;
 
-use fft::{FftFloat, FftPrecision, RealFft2, BLOCK_COLS};
+use fft::{FftFloat, FftPrecision, RealFft2};
 use otf_table::{BandProfile, ChunkProfile, RadialTables, CHUNK_LANES};
 use padding::{FramePad, PadMap};
 
@@ -889,105 +891,5 @@ impl Imager {
             let cos2 = 1.0 / (1.0 + x * x + y * y);
             *v *= cos2 * cos2;
         }
-    }
-}
-
-/// The fused column pass of a chunk of bands: for every block of [`BLOCK_COLS`] column
-/// frequencies (blocks in parallel), every band's columns are transformed in place
-/// ([`RealFft2::column_region_forward`]: the row pass left them contiguous), then one pass
-/// over the block adds all bands, in band order, to each accumulator sample:
-/// `acc += spec_b · w_b · A(f) · P_b(ρ(f))`, with A the achromatic product and P_b band
-/// b's chromatic profile, all bands interpolated at once from the chunk's common ρ grid
-/// ([`ChunkProfile::eval_all`]; no per-band OTF array, no frame-sized transpose; the
-/// accumulator and the ρ table are loaded once per chunk, not once per band). `acc_t`
-/// and `radial` are in the transposed `[fx][fy]` layout. Every sample is computed by one
-/// worker with the same operations in the same order whatever the thread count, so the
-/// result does not depend on it.
-///
-/// `rowspecs[c]` is band c's transposed row pass ([`RealFft2::rows_forward_transposed`];
-/// used as scratch: it holds the band's 2-D spectrum on return), `weights[c]` its spectral
-/// weight and lane c of `profile` ([`Imager::chunk_profile`]) its profile.
-pub fn accumulate_chunk<T: FftFloat>(
-    fft: &RealFft2<T>,
-    rowspecs: &mut [Vec<num_complex::Complex<T>>],
-    weights: &[f64],
-    profile: &ChunkProfile,
-    radial: &[[f64; 2]],
-    acc_t: &mut [Complex64],
-) {
-    let rows = fft.shape().0;
-    let nb = rowspecs.len().min(weights.len()).min(profile.bands());
-    let block = BLOCK_COLS * rows;
-    // Per block, every band's region of it (disjoint slices, contiguous columns).
-    let mut regions: Vec<Vec<&mut [num_complex::Complex<T>]>> = (0..acc_t.len().div_ceil(block))
-        .map(|_| Vec::with_capacity(nb))
-        .collect();
-    for rs in rowspecs[..nb].iter_mut() {
-        for (bi, region) in rs.chunks_mut(block).enumerate() {
-            regions[bi].push(region);
-        }
-    }
-    acc_t
-        .par_chunks_mut(block)
-        .zip(radial.par_chunks(block))
-        .zip(regions.into_par_iter())
-        .for_each_init(
-            || fft.column_region_scratch(),
-            |sc, ((a, r), mut bands)| {
-                for region in bands.iter_mut() {
-                    fft.column_region_forward(region, sc);
-                }
-                let blocks: Vec<&[num_complex::Complex<T>]> = bands.iter().map(|b| &**b).collect();
-                if let (Ok(blocks), Ok(w)) = (
-                    <[&[num_complex::Complex<T>]; CHUNK_LANES]>::try_from(&blocks[..]),
-                    <[f64; CHUNK_LANES]>::try_from(&weights[..nb]),
-                ) {
-                    accumulate_block_full(a, r, blocks, w, profile);
-                    return;
-                }
-                let mut g = [0.0; CHUNK_LANES];
-                for (k, (a, p)) in a.iter_mut().zip(r).enumerate() {
-                    if p[1] == 0.0 {
-                        continue;
-                    }
-                    profile.eval_all(p[0], &mut g);
-                    let mut sum = *a;
-                    for ((blk, w), gc) in blocks.iter().zip(weights).zip(&g) {
-                        let s = blk[k];
-                        let s = Complex64::new(s.re.widen(), s.im.widen());
-                        sum += s * (w * p[1] * gc);
-                    }
-                    *a = sum;
-                }
-            },
-        );
-}
-
-/// [`accumulate_chunk`]'s sample loop for a full chunk ([`CHUNK_LANES`] bands): the same
-/// operations in the same order, with the bands as fixed-size arrays (no per-band bounds
-/// checks or loop bookkeeping inside the loop over samples).
-#[inline(never)]
-fn accumulate_block_full<T: FftFloat>(
-    acc: &mut [Complex64],
-    radial: &[[f64; 2]],
-    blocks: [&[num_complex::Complex<T>]; CHUNK_LANES],
-    weights: [f64; CHUNK_LANES],
-    profile: &ChunkProfile,
-) {
-    let n = acc.len().min(radial.len());
-    let blocks = blocks.map(|b| &b[..n]);
-    let mut g = [0.0; CHUNK_LANES];
-    for (k, (a, p)) in acc[..n].iter_mut().zip(&radial[..n]).enumerate() {
-        if p[1] == 0.0 {
-            continue;
-        }
-        profile.eval_all(p[0], &mut g);
-        let mut sum = *a;
-        for c in 0..CHUNK_LANES {
-            let s = blocks[c][k];
-            let s = Complex64::new(s.re.widen(), s.im.widen());
-            sum += s * (weights[c] * p[1] * g[c]);
-        }
-        *a = sum;
     }
 }
