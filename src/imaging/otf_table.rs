@@ -231,13 +231,14 @@ impl RadialTables {
             .map(|r0| {
                 let lambda_m = lambda_ref_um * 1e-6;
                 let u_end = ((-TURBULENCE_FLOOR.ln()) / 3.44).powf(0.6);
-                Table1d::build(
-                    |u| otf.component(Component::Turbulence, u * r0 / lambda_m, 0.0, lambda_ref_um),
-                    u_end,
-                    0.0,
-                    4096,
-                    COMPONENT_MIDPOINT_TOLERANCE,
-                )
+                // r0 computed once above, not once per table sample.
+                let turbulence = |u: f64| {
+                    let f = u * r0 / lambda_m;
+                    otf.product_where(f, 0.0, lambda_ref_um, Some(r0), |c| {
+                        c == Component::Turbulence
+                    })
+                };
+                Table1d::build(turbulence, u_end, 0.0, 4096, COMPONENT_MIDPOINT_TOLERANCE)
             });
         let aerosol = otf.aerosol_particle_radius_m().map(|a_m| {
             let lambda_m = lambda_ref_um * 1e-6;

@@ -283,7 +283,12 @@ impl SystemOtf {
         if !self.components.contains(&c) {
             return 1.0;
         }
-        self.component_unchecked(c, fx, fy, wavelength_um, self.fried_r0_m(wavelength_um))
+        // The Fried parameter (two `powf`) only where it is used.
+        let r0_m = match c {
+            Component::Turbulence => self.fried_r0_m(wavelength_um),
+            _ => None,
+        };
+        self.component_unchecked(c, fx, fy, wavelength_um, r0_m)
     }
 
     /// The product of the enabled components for which `keep` is true, in the order of
