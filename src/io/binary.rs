@@ -57,7 +57,9 @@ impl PlanePool {
                 v.reserve(n - v.len());
                 v
             }
-            None => Vec::with_capacity(n),
+            // Zeroed by the allocator (fresh pages from the kernel, no memset), so the
+            // reads into it need not zero it again.
+            None => vec![0.0; n],
         }
     }
 
