@@ -23,7 +23,9 @@
 //!    line), so every column is one contiguous run; the imaging engine transforms each
 //!    block of columns where it lies and adds it, OTF-weighted, to its accumulator while
 //!    it is still in cache. No gather, no scatter; the same plans and data, so the same
-//!    values bit for bit.
+//!    values bit for bit. In f32 the transposing store moves four columns at a time with
+//!    AVX where the CPU has it ([`FftFloat::store_tile_transposed`]; a bit copy, so the
+//!    same result on every CPU).
 //!
 //! The gather and the scatter move [`TILE_ROWS`] rows at a time: each column of the block
 //! then receives 8 consecutive samples (64 B in f32, 128 B in f64: whole cache lines)
