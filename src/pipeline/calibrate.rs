@@ -128,27 +128,56 @@ pub fn calibrate_frames(
         return Ok(CalibrationOutcome::Skipped);
     };
     let instance = exposure.instance();
-    let checked = Calibration::new(sensor, exposure.model(), instance, opts).and_then(|cal| {
-        let temps = cal.temperatures_k();
-        let lo = temps.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = temps.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let t_check = 0.5 * (lo + hi) + CHECK_OFFSET_K;
-        let rnu = cal.residual_nonuniformity(instance, t_check)?;
-        Ok((cal, t_check, rnu))
-    });
-    let (cal, t_check, (raw, corrected)) = match checked {
+    let cal = match Calibration::new(sensor, exposure.model(), instance, opts) {
         Ok(c) => c,
         Err(e) => return Ok(CalibrationOutcome::Failed(failure_warning(sensor, &e))),
     };
+    let temps = cal.temperatures_k();
+    let lo = temps.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = temps.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let t_check = 0.5 * (lo + hi) + CHECK_OFFSET_K;
+    // The residual non-uniformity check, the frames' conversion and the measured NETD are
+    // independent (each deterministic): they run side by side on the worker pool.
+    let (rnu, (converted, netd_measured)) = rayon::join(
+        || cal.residual_nonuniformity(instance, t_check),
+        || {
+            rayon::join(
+                || {
+                    frames
+                        .iter()
+                        .map(|f| {
+                            let corrected = cal.correct(f.dn.view())?;
+                            Ok(cal.to_temperature(corrected.view()))
+                        })
+                        .collect::<Result<Vec<_>>>()
+                },
+                || {
+                    netd_sample(exposure.model().rows(), exposure.model().cols())
+                        .and_then(|sample| {
+                            measured_netd_sampled(
+                                sensor,
+                                instance,
+                                NETD_AT_K,
+                                NETD_DELTA_K,
+                                &sample,
+                                Some(cal.bad_pixels()),
+                            )
+                        })
+                        .ok()
+                },
+            )
+        },
+    );
+    let (raw, corrected) = match rnu {
+        Ok(r) => r,
+        Err(e) => return Ok(CalibrationOutcome::Failed(failure_warning(sensor, &e))),
+    };
     let mut nan_total = 0;
-    for f in frames.iter_mut() {
-        let corrected = cal.correct(f.dn.view())?;
-        let (t, l, nan) = cal.to_temperature(corrected.view());
+    for (f, (t, l, nan)) in frames.iter_mut().zip(converted?) {
         nan_total += nan;
         f.temperature = Some(t.mapv(|v| v as f32));
         f.radiance = Some(l.mapv(|v| v as f32));
     }
-    let temps = cal.temperatures_k();
     let temporal_floor = exposure
         .model()
         .temporal_noise_dn(cal.blackbody_electrons(t_check)?)
@@ -167,18 +196,7 @@ pub fn calibrate_frames(
             measured: "spatial σ/μ of a blackbody flat field averaged over frames_per_level frames, before and after NUC and bad-pixel replacement; temporal_floor = σ_t/(μ√M) is the temporal noise left in that average".to_string(),
         },
         netd_analytic_k_at_300k: cal.netd_analytic_k(NETD_AT_K).ok(),
-        netd_measured_k_at_300k: netd_sample(exposure.model().rows(), exposure.model().cols())
-            .and_then(|sample| {
-                measured_netd_sampled(
-                    sensor,
-                    instance,
-                    NETD_AT_K,
-                    NETD_DELTA_K,
-                    &sample,
-                    Some(cal.bad_pixels()),
-                )
-            })
-            .ok(),
+        netd_measured_k_at_300k: netd_measured,
         uninvertible_pixels: nan_total,
         radiance_definition: RADIANCE_DEFINITION.to_string(),
     })))
