@@ -1119,15 +1119,16 @@ pub fn write(path: &Path, cube: &Cube) -> Result<()> {
     let layer = Layer::new(
         (cols, rows),
         attributes,
-        Encoding::SMALL_LOSSLESS,
+        super::raster::deterministic(Encoding::SMALL_LOSSLESS),
         AnyChannels::sort(channels),
     );
     let image = Image::from_layer(layer);
     super::atomic_write(path, |w| {
-        image.write().to_buffered(w).map_err(|e| match e {
+        image.write().to_buffered(&mut *w).map_err(|e| match e {
             exr::error::Error::Io(io) => Error::io(path, io),
             other => Error::format(path, format!("could not write OpenEXR: {other}")),
-        })
+        })?;
+        super::raster::sort_exr_header(w, path)
     })
 }
 

@@ -253,7 +253,14 @@ where
     output::register_cleanup(&tmp);
     // Errors name the target the user gave, not the temporary file beside it.
     let result = (|| {
-        let file = File::create(&tmp).map_err(|e| Error::io(path, e))?;
+        // Readable too: a writer may fix up what it wrote (e.g. the EXR header order).
+        let file = File::options()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&tmp)
+            .map_err(|e| Error::io(path, e))?;
         let mut w = BufWriter::new(file);
         write(&mut w)?;
         let file = w

@@ -133,6 +133,102 @@ pub fn write_tiff_f32(path: &Path, image: ArrayView2<f32>) -> Result<()> {
     })
 }
 
+/// `encoding` with its blocks stored in increasing order: the exr crate compresses blocks
+/// in parallel, and in its default (unspecified) order writes each as it finishes, so two
+/// runs of the same data would give files that differ in block order and offset table.
+/// Increasing order makes the bytes a function of the data alone (reproducible runs give
+/// identical files).
+pub(crate) fn deterministic(encoding: exr::prelude::Encoding) -> exr::prelude::Encoding {
+    exr::prelude::Encoding {
+        line_order: exr::prelude::LineOrder::Increasing,
+        ..encoding
+    }
+}
+
+/// EXR magic number (OpenEXR file layout: the first four bytes of every file).
+const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
+
+/// Version-field flag of a multi-part file (OpenEXR file layout, bit 12).
+const EXR_MULTIPART: u32 = 0x1000;
+
+/// Largest header this reorders (bytes); a longer one is left as written.
+const MAX_SORTED_HEADER: u64 = 64 << 20;
+
+/// Puts the header attributes of the single-part OpenEXR file just written through `w` in
+/// name order, in place. The exr crate keeps custom attributes in a `HashMap`, whose
+/// iteration order differs from one map to the next, so the same image written twice had
+/// its attributes in different orders. Readers look attributes up by name (OpenEXR file
+/// layout: `name\0 type\0 size:i32 value`, the list ended by a 0 byte), and the list's
+/// length does not change, so the offset table after it stays valid. Multi-part files and
+/// anything unexpected are left as written.
+pub(crate) fn sort_exr_header(
+    w: &mut std::io::BufWriter<std::fs::File>,
+    path: &Path,
+) -> Result<()> {
+    use std::io::{Read, Seek, SeekFrom, Write};
+    w.flush().map_err(|e| Error::io(path, e))?;
+    let file = w.get_mut();
+    let len = file
+        .seek(SeekFrom::End(0))
+        .map_err(|e| Error::io(path, e))?;
+    // The header is a few KiB (a channel name per band); read more only if it is longer.
+    let mut sorted = None;
+    for limit in [64 << 10, MAX_SORTED_HEADER] {
+        let mut head = vec![0u8; len.min(limit) as usize];
+        file.seek(SeekFrom::Start(0))
+            .map_err(|e| Error::io(path, e))?;
+        file.read_exact(&mut head).map_err(|e| Error::io(path, e))?;
+        sorted = sorted_header(&head);
+        if sorted.is_some() || len <= limit {
+            break;
+        }
+    }
+    let Some(sorted) = sorted else {
+        return Ok(());
+    };
+    file.seek(SeekFrom::Start(8))
+        .map_err(|e| Error::io(path, e))?;
+    file.write_all(&sorted).map_err(|e| Error::io(path, e))?;
+    file.seek(SeekFrom::End(0))
+        .map_err(|e| Error::io(path, e))?;
+    Ok(())
+}
+
+/// The attribute list of a single-part EXR file (`bytes` from its start) with the
+/// attributes in name order, terminator included; `None` if it is not one or is cut short.
+fn sorted_header(bytes: &[u8]) -> Option<Vec<u8>> {
+    if bytes.get(..4)? != EXR_MAGIC {
+        return None;
+    }
+    let version = u32::from_le_bytes(bytes.get(4..8)?.try_into().ok()?);
+    if version & EXR_MULTIPART != 0 {
+        return None;
+    }
+    let cstr_end = |from: usize| {
+        bytes
+            .get(from..)?
+            .iter()
+            .position(|b| *b == 0)
+            .map(|n| from + n)
+    };
+    let mut attrs: Vec<(&[u8], &[u8])> = Vec::new();
+    let mut pos = 8;
+    while *bytes.get(pos)? != 0 {
+        let name_end = cstr_end(pos)?;
+        let type_end = cstr_end(name_end + 1)?;
+        let size_at = type_end + 1;
+        let size = i32::from_le_bytes(bytes.get(size_at..size_at + 4)?.try_into().ok()?);
+        let end = size_at + 4 + usize::try_from(size).ok()?;
+        bytes.get(pos..end)?;
+        attrs.push((&bytes[pos..name_end], &bytes[pos..end]));
+        pos = end;
+    }
+    attrs.sort_by(|a, b| a.0.cmp(b.0));
+    let mut out: Vec<u8> = attrs.iter().flat_map(|a| a.1.iter().copied()).collect();
+    out.push(0);
+    Some(out)
+}
+
 /// Writes a single-channel f32 OpenEXR image (lossless compression) whose channel is
 /// called `channel` (e.g. `"Y"`, `"radiance"`, `"T"`).
 pub fn write_exr_f32(path: &Path, image: ArrayView2<f32>, channel: &str) -> Result<()> {
@@ -154,7 +250,7 @@ pub fn write_exr_f32(path: &Path, image: ArrayView2<f32>, channel: &str) -> Resu
     let layer = Layer::new(
         (cols, rows),
         LayerAttributes::default(),
-        Encoding::FAST_LOSSLESS,
+        deterministic(Encoding::FAST_LOSSLESS),
         AnyChannels::sort(SmallVec::from_vec(vec![ch])),
     );
     let img = Image::from_layer(layer);
@@ -162,7 +258,8 @@ pub fn write_exr_f32(path: &Path, image: ArrayView2<f32>, channel: &str) -> Resu
         img.write().to_buffered(&mut *out).map_err(|e| match e {
             exr::error::Error::Io(io) => Error::io(path, io),
             other => Error::format(path, format!("OpenEXR encoding failed: {other}")),
-        })
+        })?;
+        sort_exr_header(out, path)
     })
 }
 

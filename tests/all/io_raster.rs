@@ -257,3 +257,34 @@ fn failures_leave_no_target_and_no_temporary_file() {
         .to_string();
     assert!(e.contains("missing.tif"), "{e}");
 }
+
+/// The block order of the file: `lineOrder` from the header, read with the `exr` crate.
+fn exr_line_order(path: &Path) -> exr::meta::attribute::LineOrder {
+    let meta = exr::meta::MetaData::read_from_file(path, false).unwrap();
+    meta.headers[0].line_order
+}
+
+/// Reproducible runs give identical files: the exr crate compresses blocks in parallel,
+/// and in its default order writes each as it finishes, so the same image written twice
+/// could differ in block order (the demo's temperature.exr did, run to run). Written
+/// with increasing block order, the bytes depend on the data alone. The image has many
+/// blocks (RLE tiles of 64 × 64) and varied content, so a parallel writer that reorders
+/// them would show it.
+#[test]
+fn exr_products_are_byte_identical_run_to_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let image = Array2::from_shape_fn((300, 517), |(r, c)| {
+        ((r * 517 + c) as f32 * 0.618_034).fract() * (1.0 + (r % 7) as f32)
+    });
+    let mut files = Vec::new();
+    for i in 0..4 {
+        let p = dir.path().join(format!("t{i}.exr"));
+        write_exr_f32(&p, image.view(), "T").unwrap();
+        assert_eq!(
+            exr_line_order(&p),
+            exr::meta::attribute::LineOrder::Increasing
+        );
+        files.push(std::fs::read(&p).unwrap());
+    }
+    assert!(files.windows(2).all(|w| w[0] == w[1]));
+}
