@@ -78,7 +78,7 @@ fn kernels(c: &mut Criterion) {
             b.iter(|| {
                 accumulate_chunk(
                     &fft,
-                    &mut rowspecs,
+                    &rowspecs,
                     &weights,
                     &profile,
                     im.radial_samples(),

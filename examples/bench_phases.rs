@@ -83,7 +83,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let profile = im.chunk_profile(&wl[ci * BANDS_PER_CHUNK..(ci + 1) * BANDS_PER_CHUNK]);
             accumulate_chunk(
                 &fft,
-                &mut rowspecs,
+                &rowspecs,
                 &weights,
                 &profile,
                 im.radial_samples(),

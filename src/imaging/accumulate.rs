@@ -12,9 +12,10 @@ use super::otf_table::{ChunkProfile, CHUNK_LANES};
 use super::Imager;
 
 /// The fused column pass of a chunk of bands: for every block of [`BLOCK_COLS`] column
-/// frequencies (blocks in parallel), every band's columns are transformed in place
-/// ([`RealFft2::column_region_forward`]: the row pass left them contiguous), then one pass
-/// over the block adds all bands, in band order, to each accumulator sample:
+/// frequencies (blocks in parallel), every band's columns are copied into a per-worker
+/// buffer and transformed there ([`RealFft2::column_region_forward`]: the row pass left
+/// them contiguous), then one pass over the block adds all bands, in band order, to each
+/// accumulator sample:
 /// `acc += spec_b · w_b · A(f) · P_b(ρ(f))`, with A the achromatic product and P_b band
 /// b's chromatic profile, all bands interpolated at once from the chunk's common ρ grid
 /// ([`ChunkProfile::eval_all`]; no per-band OTF array, no frame-sized transpose; the
@@ -24,11 +25,12 @@ use super::Imager;
 /// result does not depend on it.
 ///
 /// `rowspecs[c]` is band c's transposed row pass ([`RealFft2::rows_forward_transposed`];
-/// used as scratch: it holds the band's 2-D spectrum on return), `weights[c]` its spectral
+/// only read: each block of it is copied into a per-worker buffer and transformed there,
+/// so its cache lines are never dirtied and written back), `weights[c]` its spectral
 /// weight and lane c of `profile` ([`Imager::chunk_profile`]) its profile.
-pub fn accumulate_chunk<T: FftFloat, R: AsMut<[num_complex::Complex<T>]>>(
+pub fn accumulate_chunk<T: FftFloat, R: AsRef<[num_complex::Complex<T>]>>(
     fft: &RealFft2<T>,
-    rowspecs: &mut [R],
+    rowspecs: &[R],
     weights: &[f64],
     profile: &ChunkProfile,
     radial: &[[f64; 2]],
@@ -37,25 +39,34 @@ pub fn accumulate_chunk<T: FftFloat, R: AsMut<[num_complex::Complex<T>]>>(
     let rows = fft.shape().0;
     let nb = rowspecs.len().min(weights.len()).min(profile.bands());
     let block = BLOCK_COLS * rows;
-    // Per block, every band's region of it (disjoint slices, contiguous columns).
-    let mut regions: Vec<Vec<&mut [num_complex::Complex<T>]>> = (0..acc_t.len().div_ceil(block))
+    // Per block, every band's region of it (contiguous columns).
+    let mut regions: Vec<Vec<&[num_complex::Complex<T>]>> = (0..acc_t.len().div_ceil(block))
         .map(|_| Vec::with_capacity(nb))
         .collect();
-    for rs in rowspecs[..nb].iter_mut() {
-        for (bi, region) in rs.as_mut().chunks_mut(block).enumerate() {
+    for rs in rowspecs[..nb].iter() {
+        for (bi, region) in rs.as_ref().chunks(block).enumerate() {
             regions[bi].push(region);
         }
     }
+    let zero = num_complex::Complex::new(T::zero(), T::zero());
     acc_t
         .par_chunks_mut(block)
         .zip(radial.par_chunks(block))
         .zip(regions.into_par_iter())
         .for_each_init(
-            || fft.column_region_scratch(),
-            |sc, ((a, r), mut bands)| {
-                for region in bands.iter_mut() {
-                    fft.column_region_forward(region, sc);
+            || (vec![zero; nb * block], fft.column_region_scratch()),
+            |(buf, sc), ((a, r), bands)| {
+                // Each band's region is copied into the worker's buffer and transformed
+                // there: the row spectra are only read, so their cache lines stay clean
+                // and are never written back to memory.
+                let mut work: Vec<&mut [num_complex::Complex<T>]> = Vec::with_capacity(nb);
+                for (region, dst) in bands.iter().zip(buf.chunks_mut(block)) {
+                    let dst = &mut dst[..region.len()];
+                    dst.copy_from_slice(region);
+                    fft.column_region_forward(dst, sc);
+                    work.push(dst);
                 }
+                let bands = work;
                 let blocks: Vec<&[num_complex::Complex<T>]> = bands.iter().map(|b| &**b).collect();
                 if let (Ok(blocks), Ok(w)) = (
                     <[&[num_complex::Complex<T>]; CHUNK_LANES]>::try_from(&blocks[..]),

@@ -20,12 +20,13 @@
 //! 3. **The engine's path** ([`RealFft2::rows_forward_transposed`],
 //!    [`RealFft2::column_region_forward`]): the row pass writes its spectra transposed,
 //!    `[cols/2+1][rows]`, [`TILE_ROWS`] rows at a time (each column receives a whole cache
-//!    line), so every column is one contiguous run; the imaging engine transforms each
-//!    block of columns where it lies and adds it, OTF-weighted, to its accumulator while
-//!    it is still in cache. No gather, no scatter; the same plans and data, so the same
-//!    values bit for bit. In f32 the transposing store moves four columns at a time with
-//!    AVX where the CPU has it ([`FftFloat::store_tile_transposed`]; a bit copy, so the
-//!    same result on every CPU).
+//!    line), so every column is one contiguous run; the imaging engine copies each block
+//!    of columns into a per-worker buffer (the row spectra stay clean in cache and are
+//!    never written back), transforms it there and adds it, OTF-weighted, to its
+//!    accumulator while it is still in cache. No gather, no scatter; the same plans and
+//!    data, so the same values bit for bit. In f32 the transposing store moves four
+//!    columns at a time with AVX where the CPU has it ([`FftFloat::store_tile_transposed`];
+//!    a bit copy, so the same result on every CPU).
 //!
 //! The gather and the scatter move [`TILE_ROWS`] rows at a time: each column of the block
 //! then receives 8 consecutive samples (64 B in f32, 128 B in f64: whole cache lines)
@@ -293,7 +294,7 @@ impl<T: FftFloat> RealFft2<T> {
 
     /// Row pass into the **transposed** layout `[cols/2+1][rows]` (element `u·rows + v` is
     /// column frequency u of row v's spectrum), the layout the engine's fused column pass
-    /// transforms in place ([`RealFft2::column_region_forward`]): each column is then one
+    /// transforms block by block ([`RealFft2::column_region_forward`]): each column is one
     /// contiguous run, so the column pass needs no gather and no scatter. `fill` as in
     /// [`RealFft2::rows_forward`]. Ranges of whole [`TILE_ROWS`]-row tiles in parallel;
     /// each tile's rows are transformed into a per-worker `[TILE_ROWS][cols/2+1]` buffer

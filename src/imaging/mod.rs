@@ -645,7 +645,7 @@ impl Imager {
                         .collect();
                     accumulate_chunk(
                         fft,
-                        &mut rs[..chunk.len()],
+                        &rs[..chunk.len()],
                         &weights,
                         &profile,
                         &self.radial,
@@ -681,8 +681,8 @@ impl Imager {
 
     /// The row pass of one band plane: padded ([`Imager::padded_band`]'s frame, one row at
     /// a time, never as a whole frame) and row-transformed into the transposed layout
-    /// `[cols/2+1][rows]` that [`accumulate_chunk`] column-transforms in place
-    /// ([`RealFft2::rows_forward_transposed`]).
+    /// `[cols/2+1][rows]` whose contiguous columns [`accumulate_chunk`] transforms block
+    /// by block ([`RealFft2::rows_forward_transposed`]).
     pub fn rows_forward_band<T: FftFloat>(
         &self,
         fft: &RealFft2<T>,
