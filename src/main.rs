@@ -75,6 +75,7 @@ fn main() -> ExitCode {
 /// outputs, and the memory limit.
 fn setup(cli: &Cli) -> anyhow::Result<()> {
     eoir::io::output::install_signal_handler()?;
+    eoir::io::mapped::install_sigbus_message();
     // The main thread is one of rayon's workers (the pool keeps RAYON_NUM_THREADS or one
     // thread per core, this one included): while it reads the next chunk of bands the
     // other workers transform the current one, and when it is done reading it helps with

@@ -88,6 +88,11 @@ pub struct RunArgs {
     /// `"W m-2 sr-1 nm-1"`, `"uW cm-2 sr-1 nm-1"` (AVIRIS), `"W/(m2 sr um)"`.
     #[arg(long, value_name = "UNITS")]
     radiance_units: Option<String>,
+    /// Read the input with `read()` only, never from a memory map of the file. Maps (the
+    /// default for ENVI band-sequential f32 and NPY `<f4` input) save a copy per band, but a file
+    /// truncated by another process during the run then stops eoir with `SIGBUS`.
+    #[arg(long)]
+    no_mmap: bool,
     /// No progress bar or summary.
     #[arg(long)]
     quiet: bool,
@@ -242,6 +247,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     let read = eoir::io::ReadOptions {
         radiance_units: args.radiance_units.clone(),
+        no_memory_map: args.no_mmap,
     };
     let options = RunOptions {
         seed: args.seed,

@@ -35,7 +35,7 @@ use rayon::prelude::*;
 
 use crate::constants::{PLANCK_H, SPEED_OF_LIGHT_C};
 use crate::error::{Error, Result};
-use crate::io::CubeReader;
+use crate::io::{BandPlanes, CubeReader};
 use crate::radiometry;
 use crate::scene::sizing::paraxial_extent_rad;
 use crate::scene::{CubeMeta, Geometry, RadianceUnits};
@@ -600,7 +600,7 @@ impl Imager {
         let chunks: Vec<&[usize]> = active.chunks(BANDS_PER_CHUNK).collect();
         let t0 = Instant::now();
         let mut next = match chunks.first() {
-            Some(c) => Some(reader.read_bands(frame, c)?),
+            Some(c) => Some(reader.read_planes(frame, c)?),
             None => None,
         };
         stats.read_s += t0.elapsed().as_secs_f64();
@@ -620,7 +620,7 @@ impl Imager {
             // hence the result, is unchanged).
             let (read, read_s) = rayon::in_place_scope(|scope| {
                 let (rs, acc, fft_s, otf_s) = (&mut rowspecs, &mut acc_t, &mut fft_s, &mut otf_s);
-                let planes = &planes;
+                let planes = planes.views();
                 scope.spawn(move |_| {
                     let t1 = Instant::now();
                     let wavelengths: Vec<f64> = chunk
@@ -657,11 +657,13 @@ impl Imager {
                 let t = Instant::now();
                 let read = chunks
                     .get(ci + 1)
-                    .map(|c| reader.read_bands(frame, c))
+                    .map(|c| reader.read_planes(frame, c))
                     .transpose();
                 (read, t.elapsed().as_secs_f64())
             });
-            reader.recycle(planes);
+            if let BandPlanes::Owned(planes) = planes {
+                reader.recycle(planes);
+            }
             next = read?;
             stats.read_s += read_s;
             stats.fft_s += fft_s;

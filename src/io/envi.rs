@@ -78,6 +78,7 @@ use super::binary::{
     check_size, decode_into, decode_strided, read_at, read_samples, PlanePool, SampleType,
     READ_BLOCK_BYTES,
 };
+use super::mapped::{map_plane, BandPlanes};
 use super::metadata::{
     default_units, order_bands, resolve_geometry, resolve_units, BandOrder, ReadOptions,
 };
@@ -519,6 +520,9 @@ pub struct EnviReader {
     options: ReadOptions,
     /// Band-sequential plane buffers handed back by the engine.
     pool: PlanePool,
+    /// Set once mapping the file failed (e.g. a file system without `mmap`): later reads
+    /// go straight to `read()`.
+    map_failed: bool,
 }
 
 impl EnviReader {
@@ -777,6 +781,7 @@ impl EnviReader {
             bip_direct_frame_bytes: BIP_DIRECT_FRAME_BYTES,
             spill: None,
             pool: PlanePool::default(),
+            map_failed: false,
             options: options.clone(),
         })
     }
@@ -832,6 +837,41 @@ impl EnviReader {
     /// The `(gain, offset)` of stored band `fb`, if the header scales the data.
     fn scale_of(&self, fb: usize) -> Option<(f64, f64)> {
         self.scale.as_ref().map(|s| s[fb])
+    }
+
+    /// Output bands `bands` of a band-sequential file as views of memory maps of their
+    /// stored planes, each checked as `read_band` checks it; `None` when the file's data
+    /// cannot be served as it lies (not BSQ f32 in the machine's byte order, scaled or
+    /// with a `data ignore value`, mapping turned off or failing): the caller reads.
+    fn map_bsq(&mut self, bands: &[usize]) -> Result<Option<BandPlanes>> {
+        let native = self.big_endian == cfg!(target_endian = "big");
+        if self.options.no_memory_map
+            || self.map_failed
+            || self.interleave != Interleave::Bsq
+            || self.ty != SampleType::F32
+            || !native
+            || self.ignore.is_some()
+        {
+            return Ok(None);
+        }
+        let (rows, cols) = (self.meta.rows, self.meta.cols);
+        let n = rows * cols;
+        let mut planes = Vec::with_capacity(bands.len());
+        for &b in bands {
+            let fb = self.band_map[b];
+            if self.scale_of(fb).is_some() {
+                return Ok(None);
+            }
+            let offset = self.header_offset + (fb * n * 4) as u64;
+            let Some(plane) = map_plane(&self.file, offset, rows, cols) else {
+                self.map_failed = true;
+                return Ok(None);
+            };
+            planes.push(plane);
+        }
+        let planes = BandPlanes::Mapped(planes);
+        planes.check(&self.data_path, bands, &self.meta.wavelength_um)?;
+        Ok(Some(planes))
     }
 
     /// Stored band `fb` of a band-sequential file: one sequential read.
@@ -1072,6 +1112,20 @@ impl CubeReader for EnviReader {
             .zip(raw)
             .map(|(&b, values)| self.finish_plane(b, values))
             .collect()
+    }
+
+    /// Band-sequential f32 data in the machine's byte order comes zero-copy from memory
+    /// maps of the file (see [`super::mapped`]); everything else as
+    /// [`CubeReader::read_bands`] reads it.
+    fn read_planes(&mut self, frame: usize, bands: &[usize]) -> Result<BandPlanes> {
+        self.check_request(frame, bands)?;
+        if bands.is_empty() {
+            return Ok(BandPlanes::Owned(Vec::new()));
+        }
+        match self.map_bsq(bands)? {
+            Some(planes) => Ok(planes),
+            None => self.read_bands(frame, bands).map(BandPlanes::Owned),
+        }
     }
 
     fn warnings(&self) -> Vec<String> {

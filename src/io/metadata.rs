@@ -41,6 +41,12 @@ pub struct ReadOptions {
     /// Radiance units to use instead of whatever the file states (`--radiance-units`), in
     /// any spelling [`parse_radiance`] understands.
     pub radiance_units: Option<String>,
+    /// Read every band with `read()` into a buffer, never from a memory map of the file
+    /// (`--no-mmap`). By default f32 planes stored contiguously in the machine's byte
+    /// order (ENVI band-sequential, NPY `<f4`) are served zero-copy from maps
+    /// ([`super::mapped`]), which is faster but ends the process with `SIGBUS` if another
+    /// process truncates the file during the run.
+    pub no_memory_map: bool,
 }
 
 impl ReadOptions {

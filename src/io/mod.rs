@@ -30,12 +30,14 @@ pub mod exr;
 #[cfg(feature = "hdf5")]
 pub mod hdf5;
 pub mod input;
+pub mod mapped;
 pub mod metadata;
 pub mod npy;
 pub mod output;
 pub mod raster;
 pub(crate) mod spill;
 
+pub use mapped::BandPlanes;
 pub use metadata::ReadOptions;
 
 /// A source of radiance planes: one or more frames of a cube with shared metadata.
@@ -59,6 +61,15 @@ pub trait CubeReader {
     /// band by band. Callers bound memory by asking for a few bands at a time.
     fn read_bands(&mut self, frame: usize, bands: &[usize]) -> Result<Vec<Array2<f32>>> {
         bands.iter().map(|&b| self.read_band(frame, b)).collect()
+    }
+    /// The bands [`CubeReader::read_bands`] reads, as [`BandPlanes`]: views of a memory
+    /// map of the file where the reader can serve them without a copy (ENVI
+    /// band-sequential f32 or NPY `<f4` in the machine's byte order, unscaled, see
+    /// [`mapped`]), else
+    /// `read_bands`'s buffers (the default). Checked as `read_band` checks them. The
+    /// imaging engine reads through this.
+    fn read_planes(&mut self, frame: usize, bands: &[usize]) -> Result<BandPlanes> {
+        self.read_bands(frame, bands).map(BandPlanes::Owned)
     }
     /// Things the reader assumed or worked around that the user should know about
     /// (e.g. a unit the file did not state). Empty when the file was unambiguous.

@@ -46,6 +46,7 @@ use crate::error::{Error, Result};
 use crate::scene::{check_radiance_plane, Cube, CubeMeta};
 
 use super::binary::{check_size, read_samples, PlanePool, SampleType};
+use super::mapped::{map_plane, BandPlanes};
 use super::metadata::{
     default_units, order_bands, resolve_geometry, resolve_units, BandOrder, ReadOptions,
 };
@@ -448,6 +449,8 @@ pub struct NpyReader {
     options: ReadOptions,
     /// Plane buffers handed back by the engine.
     pool: PlanePool,
+    /// Set once mapping the file failed: later reads go straight to `read()`.
+    map_failed: bool,
 }
 
 impl NpyReader {
@@ -621,6 +624,7 @@ impl NpyReader {
         Ok(NpyReader {
             options: options.clone(),
             pool: PlanePool::default(),
+            map_failed: false,
             meta,
             path: path.to_path_buf(),
             file,
@@ -651,23 +655,8 @@ impl CubeReader for NpyReader {
     }
 
     fn read_band(&mut self, frame: usize, band: usize) -> Result<Array2<f32>> {
-        let bands = self.meta.bands();
-        if frame >= self.frames {
-            return Err(Error::OutOfRange(format!(
-                "{}: frame {frame} requested but the file has frames 0..{}",
-                self.path.display(),
-                self.frames
-            )));
-        }
-        if band >= bands {
-            return Err(Error::OutOfRange(format!(
-                "{}: band {band} requested but the cube has bands 0..{bands}",
-                self.path.display()
-            )));
-        }
+        let offset = self.plane_offset(frame, band)?;
         let (rows, cols) = (self.meta.rows, self.meta.cols);
-        let plane_bytes = (rows * cols * self.ty.size()) as u64;
-        let index = (frame * bands + self.band_map[band]) as u64;
         // The plane is contiguous ([frame, band, row, col] in C order): one sequential
         // read (in 4 MiB pieces for larger planes), decoded as it arrives.
         let mut values = self.pool.take(rows * cols);
@@ -675,7 +664,7 @@ impl CubeReader for NpyReader {
         read_samples(
             &mut self.file,
             &self.path,
-            self.data_start + index * plane_bytes,
+            offset,
             rows * cols,
             self.ty,
             self.big_endian,
@@ -693,6 +682,35 @@ impl CubeReader for NpyReader {
         Ok(plane)
     }
 
+    /// `<f4` data in the machine's byte order, in eoir's units, comes zero-copy from
+    /// memory maps of the file (see [`super::mapped`]; the NPY header pads the data to a
+    /// 64-byte boundary); everything else as [`CubeReader::read_bands`] reads it.
+    fn read_planes(&mut self, frame: usize, bands: &[usize]) -> Result<BandPlanes> {
+        let native = self.big_endian == cfg!(target_endian = "big");
+        if self.options.no_memory_map
+            || self.map_failed
+            || self.ty != SampleType::F32
+            || !native
+            || self.to_eoir != 1.0
+            || bands.is_empty()
+        {
+            return self.read_bands(frame, bands).map(BandPlanes::Owned);
+        }
+        let (rows, cols) = (self.meta.rows, self.meta.cols);
+        let mut planes = Vec::with_capacity(bands.len());
+        for &b in bands {
+            let offset = self.plane_offset(frame, b)?;
+            let Some(plane) = map_plane(&self.file, offset, rows, cols) else {
+                self.map_failed = true;
+                return self.read_bands(frame, bands).map(BandPlanes::Owned);
+            };
+            planes.push(plane);
+        }
+        let planes = BandPlanes::Mapped(planes);
+        planes.check(&self.path, bands, &self.meta.wavelength_um)?;
+        Ok(planes)
+    }
+
     fn warnings(&self) -> Vec<String> {
         self.warnings.clone()
     }
@@ -708,6 +726,31 @@ impl CubeReader for NpyReader {
 
     fn recycle(&mut self, planes: Vec<Array2<f32>>) {
         self.pool.give(planes, self.meta.rows * self.meta.cols);
+    }
+}
+
+impl NpyReader {
+    /// The byte offset of band `band` of frame `frame` (output numbering), after checking
+    /// both exist.
+    fn plane_offset(&self, frame: usize, band: usize) -> Result<u64> {
+        let bands = self.meta.bands();
+        if frame >= self.frames {
+            return Err(Error::OutOfRange(format!(
+                "{}: frame {frame} requested but the file has frames 0..{}",
+                self.path.display(),
+                self.frames
+            )));
+        }
+        if band >= bands {
+            return Err(Error::OutOfRange(format!(
+                "{}: band {band} requested but the cube has bands 0..{bands}",
+                self.path.display()
+            )));
+        }
+        let (rows, cols) = (self.meta.rows, self.meta.cols);
+        let plane_bytes = (rows * cols * self.ty.size()) as u64;
+        let index = (frame * bands + self.band_map[band]) as u64;
+        Ok(self.data_start + index * plane_bytes)
     }
 }
 

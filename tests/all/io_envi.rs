@@ -552,12 +552,19 @@ fn nan_inf_and_negative_radiance_name_the_band_and_pixel() {
     );
     let mut r = EnviReader::open(&dir.path().join("bad.hdr")).unwrap();
     assert!(r.read_band(0, 0).is_ok());
+    assert!(matches!(
+        r.read_planes(0, &[0]).unwrap(),
+        eoir::io::BandPlanes::Mapped(_)
+    ));
     for (b, needle) in [
         (1, "row 1, col 2: radiance NaN"),
         (2, "row 0, col 1: radiance inf"),
         (3, "row 2, col 0: radiance -0.5"),
     ] {
         let e = r.read_band(0, b).unwrap_err().to_string();
+        // A memory-mapped plane is checked the same way, with the same message.
+        let mapped = r.read_planes(0, &[0, b]).unwrap_err().to_string();
+        assert_eq!(mapped, e);
         assert!(
             e.contains(&format!("band {b} (")) && e.contains(needle),
             "{e}"
@@ -785,33 +792,14 @@ fn chunked_reads_give_the_layout_truth_for_every_interleave_type_and_order() {
         for ty in [2u32, 3, 4, 5, 12] {
             for big in [false, true] {
                 let stem = format!("{il}{ty}{}", if big { "be" } else { "le" });
-                let h = header(dims, ty, il, &format!("header offset = {offset}\n"))
-                    .replace(
-                        "byte order = 0",
-                        if big {
-                            "byte order = 1"
-                        } else {
-                            "byte order = 0"
-                        },
-                    )
-                    .replace("header offset = 0\n", "");
-                write(&dir.path().join(format!("{stem}.hdr")), h);
-                let mut bytes = vec![0xA5u8; offset];
-                bytes.extend(pack(&arrange(layout, dims, truth), ty, big));
-                write(&dir.path().join(format!("{stem}.img")), bytes);
+                let spec = (layout, il, ty, big, offset);
+                write_truth_cube(dir.path(), &stem, dims, spec, "");
                 for (path, mut r) in readers_for(&dir.path().join(format!("{stem}.hdr"))) {
                     for req in REQUESTS {
                         let planes = r.read_bands(0, req).unwrap();
                         assert_eq!(planes.len(), req.len());
                         for (plane, &b) in planes.iter().zip(req) {
-                            assert_eq!(plane.dim(), (6, 5));
-                            for ((row, col), v) in plane.indexed_iter() {
-                                assert_eq!(
-                                    f64::from(*v),
-                                    truth(b, row, col),
-                                    "{stem} ({path}) request {req:?} band {b} ({row},{col})"
-                                );
-                            }
+                            assert_is_truth(plane.view(), b, &format!("{stem} ({path}) {req:?}"));
                         }
                     }
                     // read_band is the one-band chunk.
@@ -826,6 +814,44 @@ fn chunked_reads_give_the_layout_truth_for_every_interleave_type_and_order() {
                 }
             }
         }
+    }
+}
+
+/// Writes `<stem>.hdr` and `<stem>.img`: the layout-truth cube of `dims` in `spec`
+/// (layout, its `interleave` name, ENVI data type, big-endian, header offset: the data
+/// after that many 0xA5 bytes), with `extra` header lines; returns the header's path.
+fn write_truth_cube(
+    dir: &Path,
+    stem: &str,
+    dims: (usize, usize, usize),
+    (layout, il, ty, big, offset): (Layout, &str, u32, bool, usize),
+    extra: &str,
+) -> PathBuf {
+    let order = if big {
+        "byte order = 1"
+    } else {
+        "byte order = 0"
+    };
+    let h = header(dims, ty, il, &format!("header offset = {offset}\n{extra}"))
+        .replace("byte order = 0", order)
+        .replace("header offset = 0\n", "");
+    let hdr = dir.join(format!("{stem}.hdr"));
+    write(&hdr, h);
+    let mut bytes = vec![0xA5u8; offset];
+    bytes.extend(pack(&arrange(layout, dims, truth), ty, big));
+    write(&dir.join(format!("{stem}.img")), bytes);
+    hdr
+}
+
+/// `plane` is band `b` of the 6 × 5 layout-truth cube of the chunked-read tests.
+fn assert_is_truth(plane: ndarray::ArrayView2<f32>, b: usize, what: &str) {
+    assert_eq!(plane.dim(), (6, 5), "{what}");
+    for ((row, col), v) in plane.indexed_iter() {
+        assert_eq!(
+            f64::from(*v),
+            truth(b, row, col),
+            "{what} band {b} ({row},{col})"
+        );
     }
 }
 
@@ -1140,4 +1166,113 @@ fn a_run_reads_and_checks_exactly_the_bands_with_sensor_response_envi_and_npy() 
     let poisoned = outcomes.pop().unwrap();
     let clean = outcomes.pop().unwrap();
     check_unread_band_runs("npy", clean, poisoned, "cubetrue.npy");
+}
+
+/// `read_planes` serves band-sequential f32 data in the machine's byte order at a
+/// 4-byte-aligned offset from memory maps of the file, and everything else (other
+/// layouts, types, byte order, an unaligned offset, scaled data, a `data ignore value`,
+/// mapping turned off) from `read()`: either way the planes are the layout truth.
+#[test]
+fn read_planes_maps_exactly_the_bsq_f32_files_it_can_and_gives_the_layout_truth() {
+    use eoir::io::{BandPlanes, ReadOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let dims = (7, 6, 5);
+    let native_big = cfg!(target_endian = "big");
+    for (layout, il) in [
+        (Layout::Bsq, "bsq"),
+        (Layout::Bil, "bil"),
+        (Layout::Bip, "bip"),
+    ] {
+        for ty in [2u32, 4, 5] {
+            for big in [false, true] {
+                for (offset, extra) in [
+                    (40, ""),
+                    (37, ""),
+                    (4096, ""),
+                    (40, "data gain values = {1,1,1,1,1,1,1}\n"),
+                    (40, "data ignore value = -9999\n"),
+                ] {
+                    let stem = format!("{il}{ty}{big}{offset}{}", extra.len());
+                    let spec = (layout, il, ty, big, offset);
+                    let hdr = write_truth_cube(dir.path(), &stem, dims, spec, extra);
+                    for no_memory_map in [false, true] {
+                        let opts = ReadOptions {
+                            no_memory_map,
+                            ..Default::default()
+                        };
+                        let mut r = EnviReader::open_with(&hdr, &opts).unwrap();
+                        let mappable = matches!(layout, Layout::Bsq)
+                            && ty == 4
+                            && big == native_big
+                            && offset % 4 == 0
+                            && extra.is_empty()
+                            && !no_memory_map;
+                        for req in REQUESTS {
+                            let planes = r.read_planes(0, req).unwrap();
+                            assert_eq!(
+                                matches!(planes, BandPlanes::Mapped(_)),
+                                mappable && !req.is_empty(),
+                                "{stem} mapping off: {no_memory_map}"
+                            );
+                            let views = planes.views();
+                            assert_eq!(views.len(), req.len());
+                            for (plane, &b) in views.iter().zip(req) {
+                                assert_is_truth(plane.view(), b, &stem);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// A file truncated by another process while it is mapped raises SIGBUS when a page past
+/// the new end is touched; the handler `eoir` installs turns that into one line on
+/// standard error and exit status 74 instead of "Bus error". Run in a child process (this
+/// test's own binary, selecting itself), since the process ends.
+#[test]
+fn sigbus_on_a_truncated_mapped_file_is_one_clear_line() {
+    const CHILD: &str = "EOIR_TEST_SIGBUS_CHILD";
+    if let Some(dir) = std::env::var_os(CHILD) {
+        let dir = PathBuf::from(dir);
+        eoir::io::mapped::install_sigbus_message();
+        let mut r = EnviReader::open(&dir.join("c.hdr")).unwrap();
+        let planes = r.read_planes(0, &[1]).unwrap();
+        assert!(matches!(planes, eoir::io::BandPlanes::Mapped(_)));
+        std::fs::OpenOptions::new()
+            .write(true)
+            .open(dir.join("c.img"))
+            .unwrap()
+            .set_len(0)
+            .unwrap();
+        let sum: f32 = planes.views()[0].iter().sum();
+        println!("not reached: {sum}");
+        std::process::exit(0);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    // Bands of 64 KiB so that the mapped band lies wholly past the truncated end.
+    let dims = (2, 128, 128);
+    write(&dir.path().join("c.hdr"), header(dims, 4, "bsq", ""));
+    write(
+        &dir.path().join("c.img"),
+        pack(&arrange(Layout::Bsq, dims, truth), 4, false),
+    );
+    let out = std::process::Command::new(std::env::current_exe().unwrap())
+        .args([
+            "--exact",
+            "io_envi::sigbus_on_a_truncated_mapped_file_is_one_clear_line",
+            "--nocapture",
+            "--test-threads=1",
+        ])
+        .env(CHILD, dir.path())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(74), "{stderr}");
+    assert!(
+        stderr.contains("an input file was truncated") && stderr.contains("--no-mmap"),
+        "{stderr}"
+    );
+    assert!(!String::from_utf8_lossy(&out.stdout).contains("not reached"));
 }

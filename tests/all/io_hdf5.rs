@@ -529,6 +529,7 @@ fn units_go_through_the_one_parser_and_the_override() {
     // ... which the override satisfies, scaling the values.
     let opts = eoir::io::ReadOptions {
         radiance_units: Some("W m-2 sr-1 nm-1".into()),
+        ..Default::default()
     };
     let mut r = eoir::io::open_with(&p, &opts).unwrap();
     assert!((r.read_band(0, 0).unwrap()[[0, 0]] - 1000.0).abs() < 1e-3);
@@ -549,6 +550,7 @@ fn units_go_through_the_one_parser_and_the_override() {
     // A non-radiance override is refused naming the option.
     let bad = eoir::io::ReadOptions {
         radiance_units: Some("K".into()),
+        ..Default::default()
     };
     let e = eoir::io::open_with(&p, &bad).err().unwrap().to_string();
     assert!(e.contains("--radiance-units") && e.contains("`K`"), "{e}");

@@ -389,12 +389,18 @@ fn nan_inf_and_negative_radiance_name_the_band() {
     );
     let mut r = NpyReader::open(&p).unwrap();
     assert!(r.read_band(0, 0).is_ok());
+    assert!(matches!(
+        r.read_planes(0, &[0]).unwrap(),
+        eoir::io::BandPlanes::Mapped(_)
+    ));
     for (b, needle) in [
         (1, "band 1 (2 µm), row 0, col 2: radiance NaN"),
         (2, "band 2 (3 µm), row 1, col 1: radiance -inf"),
         (3, "band 3 (4 µm), row 1, col 0: radiance -2"),
     ] {
         let e = r.read_band(0, b).unwrap_err().to_string();
+        // A memory-mapped plane is checked the same way, with the same message.
+        assert_eq!(r.read_planes(0, &[0, b]).unwrap_err().to_string(), e);
         assert!(e.contains(needle) && e.contains("bad.npy"), "{e}");
     }
 }
@@ -513,6 +519,105 @@ fn chunked_reads_of_planes_larger_than_one_read_block_are_exact() {
                     "frame {frame} band {b}"
                 );
             }
+        }
+    }
+}
+
+/// `read_planes` serves `<f4` data (the machine's byte order on little-endian hosts) in
+/// eoir's units from memory maps of the file, frames and bands alike, and `>f4`, `<f8`,
+/// integer data, a unit conversion or mapping turned off from `read()`: the same values
+/// either way.
+#[test]
+fn read_planes_maps_native_f32_in_eoir_units_and_reads_the_rest() {
+    use eoir::io::{BandPlanes, ReadOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let (nf, nb, nr, nc) = (2usize, 3usize, 4usize, 5usize);
+    let vals: Vec<f64> = (0..nf * nb * nr * nc)
+        .map(|i| {
+            value(
+                i / (nb * nr * nc),
+                (i / (nr * nc)) % nb,
+                (i / nc) % nr,
+                i % nc,
+            )
+        })
+        .collect();
+    type Enc = fn(f64) -> Vec<u8>;
+    let native_big = cfg!(target_endian = "big");
+    let cases: [(&str, Enc, &str, bool); 5] = [
+        (
+            "<f4",
+            |v| (v as f32).to_le_bytes().to_vec(),
+            "W m-2 sr-1 um-1",
+            !native_big,
+        ),
+        (
+            ">f4",
+            |v| (v as f32).to_be_bytes().to_vec(),
+            "W m-2 sr-1 um-1",
+            native_big,
+        ),
+        (
+            "<f8",
+            |v| v.to_le_bytes().to_vec(),
+            "W m-2 sr-1 um-1",
+            false,
+        ),
+        (
+            "<u2",
+            |v| (v as u16).to_le_bytes().to_vec(),
+            "W m-2 sr-1 um-1",
+            false,
+        ),
+        // µW cm⁻² sr⁻¹ nm⁻¹ → W m⁻² sr⁻¹ µm⁻¹ is × 10: scaled, so read.
+        (
+            "<f4",
+            |v| (v as f32).to_le_bytes().to_vec(),
+            "uW cm-2 sr-1 nm-1",
+            false,
+        ),
+    ];
+    for (i, (descr, enc, units, mappable)) in cases.iter().enumerate() {
+        let data: Vec<u8> = vals.iter().flat_map(|v| enc(*v)).collect();
+        let dict = format!(
+            "{{'descr': '{descr}', 'fortran_order': False, 'shape': ({nf}, {nb}, {nr}, {nc}), }}"
+        );
+        let p = dir.path().join(format!("m{i}.npy"));
+        std::fs::write(&p, npy_bytes(1, &dict, &data)).unwrap();
+        sidecar(
+            &p,
+            &format!(r#"{{"wavelength_um": [3.9, 4.0, 4.1], "units": "{units}"}}"#),
+        );
+        let k = if units.starts_with("uW") { 10.0 } else { 1.0 };
+        for no_memory_map in [false, true] {
+            let opts = ReadOptions {
+                no_memory_map,
+                ..Default::default()
+            };
+            let mut r = NpyReader::open_with(&p, &opts).unwrap();
+            for f in [1, 0] {
+                let planes = r.read_planes(f, &[2, 0, 1]).unwrap();
+                assert_eq!(
+                    matches!(planes, BandPlanes::Mapped(_)),
+                    *mappable && !no_memory_map,
+                    "{descr} {units} mapping off: {no_memory_map}"
+                );
+                for (view, b) in planes.views().iter().zip([2, 0, 1]) {
+                    for ((row, col), v) in view.indexed_iter() {
+                        assert_eq!(f64::from(*v), k * value(f, b, row, col), "{descr} {units}");
+                    }
+                }
+            }
+            assert!(r
+                .read_planes(2, &[0])
+                .unwrap_err()
+                .to_string()
+                .contains("frame 2"));
+            assert!(r
+                .read_planes(0, &[3])
+                .unwrap_err()
+                .to_string()
+                .contains("band 3"));
         }
     }
 }

@@ -123,6 +123,7 @@ fn radiance_units_override_wins_and_scales() {
     // The BSQ file is per µm; claiming per nm multiplies every value by 1000.
     let opts = ReadOptions {
         radiance_units: Some("W m-2 sr-1 nm-1".into()),
+        ..Default::default()
     };
     let mut over = io::open_with(&fixture("envi_bsq.hdr"), &opts).unwrap();
     let mut plain = io::open(&fixture("envi_bsq.hdr")).unwrap();
@@ -136,6 +137,7 @@ fn radiance_units_override_wins_and_scales() {
     // A unit that is not radiance is refused, naming the option.
     let bad = ReadOptions {
         radiance_units: Some("K".into()),
+        ..Default::default()
     };
     let e = io::open_with(&fixture("npy_foreign.npy"), &bad)
         .err()

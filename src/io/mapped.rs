@@ -1,0 +1,243 @@
+//! Band planes served straight from read-only memory maps of the input file (`mmap`), so
+//! that f32 planes stored contiguously in the machine's byte order and in eoir's units
+//! (ENVI band-sequential, NPY `<f4`) cost no copy at all: the imaging engine's row pass
+//! reads the page cache itself. One map per plane, unmapped as soon as the engine is done
+//! with it, so the mapped pages counted in the resident set stay those of the two chunks
+//! in flight (memory stays flat in the band count). A `read()` into a
+//! buffer costs the kernel's copy (≈ 14 % of the samples of a 1024² × 128 run) and the
+//! buffer's own memory traffic on top.
+//!
+//! A memory map has one failure mode a `read()` has not: if another process truncates
+//! the file while it is mapped, touching a page past the new end raises `SIGBUS`. The
+//! readers check the file's size when they open it and again right after mapping, and
+//! the `eoir` command installs a handler that turns a `SIGBUS` into a one-line error
+//! naming the cause ([`install_sigbus_message`]); a library user who cannot accept the
+//! risk turns mapping off with [`crate::io::ReadOptions::no_memory_map`].
+
+use std::fs::File;
+use std::os::fd::AsRawFd;
+
+use ndarray::ArrayView2;
+
+/// A read-only, private memory map of a byte range of a file, unmapped on drop.
+#[derive(Debug)]
+pub struct Mapping {
+    /// Start of the mapping (page-aligned).
+    base: *mut libc::c_void,
+    /// Length of the mapping, bytes.
+    len: usize,
+    /// Offset of the requested range from `base`, bytes.
+    start: usize,
+    /// Length of the requested range, bytes.
+    bytes: usize,
+}
+
+// SAFETY: the mapping is read-only (PROT_READ, MAP_PRIVATE) and owned by this value: no
+// one writes through it, so sharing and sending references to it is sound.
+unsafe impl Send for Mapping {}
+// SAFETY: as above.
+unsafe impl Sync for Mapping {}
+
+impl Mapping {
+    /// Maps `bytes` bytes of `file` from `offset` (any alignment), read-only, with the
+    /// pages of the page cache mapped at once (`MAP_POPULATE`: one call instead of a
+    /// fault per 4 KiB page). Fails (and the caller falls back to reading) if the file
+    /// cannot be mapped or no longer covers the range.
+    pub fn new(file: &File, offset: u64, bytes: usize) -> std::io::Result<Self> {
+        let file_len = file.metadata()?.len();
+        let end = offset.checked_add(bytes as u64);
+        if bytes == 0 || end.is_none_or(|e| e > file_len) {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::UnexpectedEof,
+                "the range to map is empty or past the end of the file",
+            ));
+        }
+        // SAFETY: sysconf has no preconditions.
+        let page = unsafe { libc::sysconf(libc::_SC_PAGESIZE) };
+        let page = u64::try_from(page).ok().filter(|&p| p > 0).unwrap_or(4096);
+        let aligned = offset - offset % page;
+        let start = (offset - aligned) as usize;
+        let len = start + bytes;
+        let off = libc::off_t::try_from(aligned).map_err(std::io::Error::other)?;
+        // SAFETY: a fresh mapping (null hint) of a file descriptor we hold open, of a
+        // range the file covers (checked above); read-only and private, so the memory is
+        // never written through it. Ownership of the mapping passes to `Mapping`.
+        let base = unsafe {
+            libc::mmap(
+                std::ptr::null_mut(),
+                len,
+                libc::PROT_READ,
+                libc::MAP_PRIVATE | libc::MAP_POPULATE,
+                file.as_raw_fd(),
+                off,
+            )
+        };
+        if base == libc::MAP_FAILED {
+            return Err(std::io::Error::last_os_error());
+        }
+        let map = Mapping {
+            base,
+            len,
+            start,
+            bytes,
+        };
+        // The file may have been truncated between the check and the mapping.
+        if file.metadata()?.len() < offset + bytes as u64 {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::UnexpectedEof,
+                "the file was truncated while it was being mapped",
+            ));
+        }
+        Ok(map)
+    }
+
+    /// The mapped range as f32 values in the machine's byte order, if it starts on a
+    /// 4-byte boundary and holds a whole number of them.
+    pub fn as_f32(&self) -> Option<&[f32]> {
+        // SAFETY: `base + start .. base + start + bytes` lies inside the live mapping.
+        let ptr = unsafe { (self.base as *const u8).add(self.start) };
+        if (ptr as usize) % std::mem::align_of::<f32>() != 0 || self.bytes % 4 != 0 {
+            return None;
+        }
+        // SAFETY: aligned (checked), inside the mapping, which lives as long as `self`
+        // and is never written; every bit pattern is a valid f32.
+        Some(unsafe { std::slice::from_raw_parts(ptr as *const f32, self.bytes / 4) })
+    }
+}
+
+impl Drop for Mapping {
+    fn drop(&mut self) {
+        // SAFETY: `base`/`len` are exactly what mmap returned; no reference into the
+        // mapping outlives `self` (they all borrow it).
+        unsafe {
+            libc::munmap(self.base, self.len);
+        }
+    }
+}
+
+/// A `rows × cols` plane of f32 values in the machine's byte order stored at `offset`
+/// of `file`, mapped: `None` if it cannot be (mapping fails, or the offset is not on a
+/// 4-byte boundary), and the caller reads it instead.
+pub(crate) fn map_plane(
+    file: &File,
+    offset: u64,
+    rows: usize,
+    cols: usize,
+) -> Option<(Mapping, usize, usize)> {
+    let map = Mapping::new(file, offset, rows * cols * 4).ok()?;
+    map.as_f32().is_some().then_some((map, rows, cols))
+}
+
+/// Band planes of one read ([`crate::io::CubeReader::read_planes`]): owned buffers, or
+/// views of memory maps of the input file (one per plane).
+#[derive(Debug)]
+pub enum BandPlanes {
+    /// Planes read into buffers (given back with [`crate::io::CubeReader::recycle`]).
+    Owned(Vec<ndarray::Array2<f32>>),
+    /// Planes served from memory maps: `(mapping, rows, cols)` per plane.
+    Mapped(Vec<(Mapping, usize, usize)>),
+}
+
+impl Default for BandPlanes {
+    fn default() -> Self {
+        BandPlanes::Owned(Vec::new())
+    }
+}
+
+impl BandPlanes {
+    /// Number of planes.
+    pub fn len(&self) -> usize {
+        match self {
+            BandPlanes::Owned(v) => v.len(),
+            BandPlanes::Mapped(v) => v.len(),
+        }
+    }
+
+    /// Whether there are no planes.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Checks every plane for NaN, ±Inf and negative radiance
+    /// ([`crate::scene::check_radiance_plane`], the message every reader gives), plane k
+    /// being band `bands[k]` of `path`, at `wavelength_um[bands[k]]`.
+    pub fn check(
+        &self,
+        path: &std::path::Path,
+        bands: &[usize],
+        wavelength_um: &[f64],
+    ) -> crate::error::Result<()> {
+        let source = path.display().to_string();
+        for (view, &b) in self.views().into_iter().zip(bands) {
+            crate::scene::check_radiance_plane(&source, b, wavelength_um[b], view)?;
+        }
+        Ok(())
+    }
+
+    /// Every plane as a `[row, col]` view.
+    pub fn views(&self) -> Vec<ArrayView2<'_, f32>> {
+        match self {
+            BandPlanes::Owned(v) => v.iter().map(|p| p.view()).collect(),
+            BandPlanes::Mapped(v) => v
+                .iter()
+                .map(|(m, rows, cols)| {
+                    let data = m.as_f32().expect("checked when the plane was mapped");
+                    ArrayView2::from_shape((*rows, *cols), data)
+                        .expect("the mapping holds rows × cols values")
+                })
+                .collect(),
+        }
+    }
+}
+
+/// Installs a `SIGBUS` handler that prints one line on standard error and exits with
+/// status 74 (`EX_IOERR`): with input files memory-mapped, a `SIGBUS` means one of them
+/// was truncated (or its storage failed) while it was being read. Without the handler
+/// the process would die with "Bus error" and no explanation. For the `eoir` command
+/// only; a library leaves the process's signal handlers alone.
+pub fn install_sigbus_message() {
+    extern "C" fn on_sigbus(_: libc::c_int) {
+        const MSG: &[u8] = b"error: an input file was truncated or became unreadable while eoir was reading it (SIGBUS on its memory map); nothing further was written. Re-run on an unchanging copy of the file, or with --no-mmap.\n";
+        // SAFETY: write(2) and _exit(2) are async-signal-safe.
+        unsafe {
+            libc::write(2, MSG.as_ptr() as *const libc::c_void, MSG.len());
+            libc::_exit(74);
+        }
+    }
+    // SAFETY: a zeroed sigaction with a handler that only calls async-signal-safe
+    // functions; installing it has no other precondition.
+    unsafe {
+        let mut sa: libc::sigaction = std::mem::zeroed();
+        sa.sa_sigaction = on_sigbus as *const () as usize;
+        libc::sigemptyset(&mut sa.sa_mask);
+        libc::sigaction(libc::SIGBUS, &sa, std::ptr::null_mut());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write;
+
+    #[test]
+    fn maps_unaligned_offsets_and_refuses_ranges_past_the_end() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("data.bin");
+        let values: Vec<f32> = (0..5000).map(|i| i as f32 * 0.5).collect();
+        let mut f = File::create(&path).unwrap();
+        f.write_all(&[0u8; 12]).unwrap();
+        for v in &values {
+            f.write_all(&v.to_ne_bytes()).unwrap();
+        }
+        drop(f);
+        let f = File::open(&path).unwrap();
+        // From value 1000 on: byte offset 12 + 4000, not page-aligned.
+        let m = Mapping::new(&f, 12 + 4000, 4 * 3000).unwrap();
+        assert_eq!(m.as_f32().unwrap(), &values[1000..4000]);
+        // Two bytes off a 4-byte boundary: mapped, but not viewable as f32.
+        let m = Mapping::new(&f, 14, 8).unwrap();
+        assert!(m.as_f32().is_none());
+        assert!(Mapping::new(&f, 12, 4 * 5000 + 1).is_err());
+        assert!(Mapping::new(&f, 12, 0).is_err());
+    }
+}
