@@ -16,6 +16,7 @@
 
 use std::fs::File;
 use std::os::fd::AsRawFd;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use ndarray::ArrayView2;
 
@@ -190,18 +191,44 @@ impl BandPlanes {
     }
 }
 
-/// Installs a `SIGBUS` handler that prints one line on standard error and exits with
-/// status 74 (`EX_IOERR`): with input files memory-mapped, a `SIGBUS` means one of them
-/// was truncated (or its storage failed) while it was being read. Without the handler
-/// the process would die with "Bus error" and no explanation. For the `eoir` command
+/// Set by the `SIGBUS` handler ([`install_sigbus_message`]) before it asks the
+/// clean-up thread to end the process.
+static SIGBUS_SEEN: AtomicBool = AtomicBool::new(false);
+
+/// Exit status after a `SIGBUS` on a mapped input (`EX_IOERR`).
+pub const SIGBUS_EXIT_STATUS: i32 = 74;
+
+/// Whether a `SIGBUS` was caught ([`install_sigbus_message`]): the clean-up thread of
+/// [`crate::io::output::install_signal_handler`] then exits with
+/// [`SIGBUS_EXIT_STATUS`] instead of reporting an interruption.
+pub fn sigbus_seen() -> bool {
+    SIGBUS_SEEN.load(Ordering::SeqCst)
+}
+
+/// Installs a `SIGBUS` handler: with input files memory-mapped, a `SIGBUS` means one of
+/// them was truncated (or its storage failed) while it was being read, and without the
+/// handler the process would die with "Bus error" and no explanation. The handler prints
+/// one line naming the cause on standard error, then sends the process `SIGTERM`, so
+/// that the clean-up thread of [`crate::io::output::install_signal_handler`] removes the
+/// unfinished product set and exits with [`SIGBUS_EXIT_STATUS`]; if nothing has ended
+/// the process 5 s later, the handler exits with that status itself. The faulting thread
+/// cannot go on (returning would fault again), so it waits. For the `eoir` command
 /// only; a library leaves the process's signal handlers alone.
 pub fn install_sigbus_message() {
     extern "C" fn on_sigbus(_: libc::c_int) {
-        const MSG: &[u8] = b"error: an input file was truncated or became unreadable while eoir was reading it (SIGBUS on its memory map); nothing further was written. Re-run on an unchanging copy of the file, or with --no-mmap.\n";
-        // SAFETY: write(2) and _exit(2) are async-signal-safe.
+        const MSG: &[u8] = b"error: an input file was truncated or became unreadable while eoir was reading it (SIGBUS on its memory map); no products were written. Re-run on an unchanging copy of the file, or with --no-mmap.\n";
+        SIGBUS_SEEN.store(true, Ordering::SeqCst);
+        // SAFETY: write(2), getpid(2), kill(2), nanosleep(2) and _exit(2) are
+        // async-signal-safe, and a lock-free atomic store is too.
         unsafe {
             libc::write(2, MSG.as_ptr() as *const libc::c_void, MSG.len());
-            libc::_exit(74);
+            libc::kill(libc::getpid(), libc::SIGTERM);
+            let wait = libc::timespec {
+                tv_sec: 5,
+                tv_nsec: 0,
+            };
+            libc::nanosleep(&wait, std::ptr::null_mut());
+            libc::_exit(SIGBUS_EXIT_STATUS);
         }
     }
     // SAFETY: a zeroed sigaction with a handler that only calls async-signal-safe

@@ -120,12 +120,20 @@ pub fn install_signal_handler() -> Result<()> {
                             // finishes first, and nothing new is registered meanwhile.
                             let list = cleanup_list();
                             remove_registered(&list);
-                            eprintln!(
-                                "eoir: interrupted (signal {sig}); removed unfinished outputs"
-                            );
+                            // A SIGBUS on a mapped input sends SIGTERM to get here
+                            // (`mapped::install_sigbus_message`, which said why).
+                            let code = if super::mapped::sigbus_seen() {
+                                eprintln!("eoir: removed unfinished outputs");
+                                super::mapped::SIGBUS_EXIT_STATUS
+                            } else {
+                                eprintln!(
+                                    "eoir: interrupted (signal {sig}); removed unfinished outputs"
+                                );
+                                128 + sig
+                            };
                             // `_exit`, still holding the lock: no atexit handlers (libhdf5's
                             // shutdown would touch the file the main thread is writing).
-                            signal_hook::low_level::exit(128 + sig);
+                            signal_hook::low_level::exit(code);
                         }
                     });
                 if let Err(e) = spawned {

@@ -1228,15 +1228,19 @@ fn read_planes_maps_exactly_the_bsq_f32_files_it_can_and_gives_the_layout_truth(
 }
 
 /// A file truncated by another process while it is mapped raises SIGBUS when a page past
-/// the new end is touched; the handler `eoir` installs turns that into one line on
-/// standard error and exit status 74 instead of "Bus error". Run in a child process (this
-/// test's own binary, selecting itself), since the process ends.
+/// the new end is touched; the handlers `eoir` installs turn that into one line on
+/// standard error, remove the unfinished product set as after SIGINT and exit with
+/// status 74, instead of "Bus error" and a staging directory left behind. Run in a child process (this test's own binary, selecting itself), since the
+/// process ends.
 #[test]
 fn sigbus_on_a_truncated_mapped_file_is_one_clear_line() {
     const CHILD: &str = "EOIR_TEST_SIGBUS_CHILD";
     if let Some(dir) = std::env::var_os(CHILD) {
         let dir = PathBuf::from(dir);
+        eoir::io::output::install_signal_handler().unwrap();
         eoir::io::mapped::install_sigbus_message();
+        let set = eoir::io::output::ProductSet::begin(&dir.join("out")).unwrap();
+        assert!(set.staging_dir().is_dir());
         let mut r = EnviReader::open(&dir.join("c.hdr")).unwrap();
         let planes = r.read_planes(0, &[1]).unwrap();
         assert!(matches!(planes, eoir::io::BandPlanes::Mapped(_)));
@@ -1275,4 +1279,7 @@ fn sigbus_on_a_truncated_mapped_file_is_one_clear_line() {
         "{stderr}"
     );
     assert!(!String::from_utf8_lossy(&out.stdout).contains("not reached"));
+    assert!(stderr.contains("removed unfinished outputs"), "{stderr}");
+    // As after SIGINT: the staging directory is gone, nothing was written.
+    assert_eq!(names(&dir.path().join("out")), Vec::<String>::new());
 }
