@@ -172,7 +172,9 @@ fn pixel_moments(
     let x = k * z + m.offset_dn();
     let var_x = k * k * (var_z + r * r);
     let (mean, var, p_clip) = adc_moments(x, var_x.sqrt(), m.max_dn());
-    let clipped = near_full_well || 1.0 - (1.0 - p_clip).powi(frames as i32) >= 0.5;
+    // p_clip = 0 (every pixel 10 σ inside the ADC range) needs no power.
+    let clipped =
+        near_full_well || (p_clip > 0.0 && 1.0 - (1.0 - p_clip).powi(frames as i32) >= 0.5);
     (mean, var, clipped)
 }
 
