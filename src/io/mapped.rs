@@ -14,8 +14,8 @@
 //! naming the cause ([`install_sigbus_message`]); a library user who cannot accept the
 //! risk turns mapping off with [`crate::io::ReadOptions::no_memory_map`].
 
+use std::ffi::c_void;
 use std::fs::File;
-use std::os::fd::AsRawFd;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use ndarray::ArrayView2;
@@ -24,7 +24,7 @@ use ndarray::ArrayView2;
 #[derive(Debug)]
 pub struct Mapping {
     /// Start of the mapping (page-aligned).
-    base: *mut libc::c_void,
+    base: *mut c_void,
     /// Length of the mapping, bytes.
     len: usize,
     /// Offset of the requested range from `base`, bytes.
@@ -53,29 +53,11 @@ impl Mapping {
                 "the range to map is empty or past the end of the file",
             ));
         }
-        // SAFETY: sysconf has no preconditions.
-        let page = unsafe { libc::sysconf(libc::_SC_PAGESIZE) };
-        let page = u64::try_from(page).ok().filter(|&p| p > 0).unwrap_or(4096);
+        let page = page_size();
         let aligned = offset - offset % page;
         let start = (offset - aligned) as usize;
         let len = start + bytes;
-        let off = libc::off_t::try_from(aligned).map_err(std::io::Error::other)?;
-        // SAFETY: a fresh mapping (null hint) of a file descriptor we hold open, of a
-        // range the file covers (checked above); read-only and private, so the memory is
-        // never written through it. Ownership of the mapping passes to `Mapping`.
-        let base = unsafe {
-            libc::mmap(
-                std::ptr::null_mut(),
-                len,
-                libc::PROT_READ,
-                libc::MAP_PRIVATE | libc::MAP_POPULATE,
-                file.as_raw_fd(),
-                off,
-            )
-        };
-        if base == libc::MAP_FAILED {
-            return Err(std::io::Error::last_os_error());
-        }
+        let base = map_read_only(file, aligned, len)?;
         let map = Mapping {
             base,
             len,
@@ -108,13 +90,73 @@ impl Mapping {
 
 impl Drop for Mapping {
     fn drop(&mut self) {
-        // SAFETY: `base`/`len` are exactly what mmap returned; no reference into the
-        // mapping outlives `self` (they all borrow it).
-        unsafe {
-            libc::munmap(self.base, self.len);
-        }
+        unmap(self.base, self.len);
     }
 }
+
+/// The system's page size (mappings start on a page boundary).
+#[cfg(unix)]
+fn page_size() -> u64 {
+    // SAFETY: sysconf has no preconditions.
+    let page = unsafe { libc::sysconf(libc::_SC_PAGESIZE) };
+    u64::try_from(page).ok().filter(|&p| p > 0).unwrap_or(4096)
+}
+
+/// Maps `len` bytes of `file` from the page-aligned `offset`, read-only and private,
+/// the pages populated at once where the system can (`MAP_POPULATE`, Linux).
+#[cfg(unix)]
+fn map_read_only(file: &File, offset: u64, len: usize) -> std::io::Result<*mut c_void> {
+    use std::os::fd::AsRawFd;
+    #[cfg(any(target_os = "linux", target_os = "android"))]
+    let flags = libc::MAP_PRIVATE | libc::MAP_POPULATE;
+    #[cfg(not(any(target_os = "linux", target_os = "android")))]
+    let flags = libc::MAP_PRIVATE;
+    let off = libc::off_t::try_from(offset).map_err(std::io::Error::other)?;
+    // SAFETY: a fresh mapping (null hint) of a file descriptor the caller holds open, of a
+    // range the file covers (checked by the caller); read-only and private, so the memory
+    // is never written through it. Ownership of the mapping passes to the caller.
+    let base = unsafe {
+        libc::mmap(
+            std::ptr::null_mut(),
+            len,
+            libc::PROT_READ,
+            flags,
+            file.as_raw_fd(),
+            off,
+        )
+    };
+    if base == libc::MAP_FAILED {
+        return Err(std::io::Error::last_os_error());
+    }
+    Ok(base)
+}
+
+/// Unmaps what [`map_read_only`] mapped.
+#[cfg(unix)]
+fn unmap(base: *mut c_void, len: usize) {
+    // SAFETY: `base`/`len` are exactly what mmap returned, and the owning `Mapping` is
+    // being dropped: no reference into the mapping outlives it (they all borrow it).
+    unsafe {
+        libc::munmap(base, len);
+    }
+}
+
+#[cfg(not(unix))]
+fn page_size() -> u64 {
+    4096
+}
+
+/// No memory maps off Unix: readers fall back to reading.
+#[cfg(not(unix))]
+fn map_read_only(_: &File, _: u64, _: usize) -> std::io::Result<*mut c_void> {
+    Err(std::io::Error::new(
+        std::io::ErrorKind::Unsupported,
+        "memory maps are used on Unix only",
+    ))
+}
+
+#[cfg(not(unix))]
+fn unmap(_: *mut c_void, _: usize) {}
 
 /// A `rows × cols` plane of f32 values in the machine's byte order stored at `offset`
 /// of `file`, mapped: `None` if it cannot be (mapping fails, or the offset is not on a
@@ -215,6 +257,13 @@ pub fn sigbus_seen() -> bool {
 /// cannot go on (returning would fault again), so it waits. For the `eoir` command
 /// only; a library leaves the process's signal handlers alone.
 pub fn install_sigbus_message() {
+    #[cfg(unix)]
+    install_sigbus_handler();
+}
+
+/// [`install_sigbus_message`] on Unix.
+#[cfg(unix)]
+fn install_sigbus_handler() {
     extern "C" fn on_sigbus(_: libc::c_int) {
         const MSG: &[u8] = b"error: an input file was truncated or became unreadable while eoir was reading it (SIGBUS on its memory map); no products were written. Re-run on an unchanging copy of the file, or with --no-mmap.\n";
         SIGBUS_SEEN.store(true, Ordering::SeqCst);

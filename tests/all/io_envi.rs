@@ -1232,6 +1232,7 @@ fn read_planes_maps_exactly_the_bsq_f32_files_it_can_and_gives_the_layout_truth(
 /// standard error, remove the unfinished product set as after SIGINT and exit with
 /// status 74, instead of "Bus error" and a staging directory left behind. Run in a child process (this test's own binary, selecting itself), since the
 /// process ends.
+#[cfg(unix)]
 #[test]
 fn sigbus_on_a_truncated_mapped_file_is_one_clear_line() {
     const CHILD: &str = "EOIR_TEST_SIGBUS_CHILD";
