@@ -27,6 +27,7 @@ pub mod otf_table;
 pub use accumulate::accumulate_chunk;
 mod padding;
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use ndarray::{Array2, ArrayView2, Axis};
@@ -600,12 +601,15 @@ impl Imager {
         let chunks: Vec<&[usize]> = active.chunks(BANDS_PER_CHUNK).collect();
         let t0 = Instant::now();
         let mut next = match chunks.first() {
-            Some(c) => Some(reader.read_planes(frame, c)?),
+            Some(c) => Some(reader.read_planes_deferred(frame, c)?),
             None => None,
         };
         stats.read_s += t0.elapsed().as_secs_f64();
         for (ci, chunk) in chunks.iter().enumerate() {
-            let planes = next.take().unwrap_or_default();
+            // Mapped planes may come unchecked (`pending`): the row pass then tests every
+            // row as it pads it, and a bad value stops the run with the reader's message
+            // before the chunk is accumulated.
+            let (planes, pending) = next.take().unwrap_or_default();
             if planes.len() != chunk.len() {
                 return Err(Error::OutOfRange(format!(
                     "the reader returned {} planes for {} bands",
@@ -615,11 +619,14 @@ impl Imager {
             }
             rowspecs.resize_with(chunk.len(), || vec![zero; ny * hc]);
             let (mut fft_s, mut otf_s) = (0.0, 0.0);
+            let mut unphysical = false;
+            let checking = pending.is_some();
             // The chunk is transformed and accumulated on the worker pool while this thread
             // reads the next one (reading overlaps computing; the order of the arithmetic,
             // hence the result, is unchanged).
             let (read, read_s) = rayon::in_place_scope(|scope| {
                 let (rs, acc, fft_s, otf_s) = (&mut rowspecs, &mut acc_t, &mut fft_s, &mut otf_s);
+                let unphysical = &mut unphysical;
                 let planes = planes.views();
                 scope.spawn(move |_| {
                     let t1 = Instant::now();
@@ -628,17 +635,23 @@ impl Imager {
                         .map(|&b| self.weights.wavelength_um[b])
                         .collect();
                     // The chunk's OTF profile is built alongside its row pass.
+                    let bad = AtomicBool::new(false);
                     let ((), profile) = rayon::join(
                         || {
                             rs.par_iter_mut()
                                 .zip(planes.par_iter())
                                 .for_each(|(rs, plane)| {
-                                    self.rows_forward_band(fft, plane.view(), rs)
+                                    let check = checking.then_some(&bad);
+                                    self.rows_forward_band_checked(fft, plane.view(), rs, check)
                                 })
                         },
                         || self.chunk_profile(&wavelengths),
                     );
                     let t2 = Instant::now();
+                    if bad.load(Ordering::Relaxed) {
+                        *unphysical = true;
+                        return;
+                    }
                     let weights: Vec<f64> = chunk
                         .iter()
                         .map(|&b| self.weights.electrons_per_unit[b])
@@ -657,10 +670,20 @@ impl Imager {
                 let t = Instant::now();
                 let read = chunks
                     .get(ci + 1)
-                    .map(|c| reader.read_planes(frame, c))
+                    .map(|c| reader.read_planes_deferred(frame, c))
                     .transpose();
                 (read, t.elapsed().as_secs_f64())
             });
+            if unphysical {
+                // The reader's own check names the band and the first bad pixel.
+                pending
+                    .as_ref()
+                    .map_or(Ok(()), |check| check.run(&planes))?;
+                return Err(Error::OutOfRange(
+                    "a band held a non-physical radiance value that the full check did not find"
+                        .to_string(),
+                ));
+            }
             if let BandPlanes::Owned(planes) = planes {
                 reader.recycle(planes);
             }
@@ -691,7 +714,37 @@ impl Imager {
         plane: ArrayView2<f32>,
         rowspec: &mut [num_complex::Complex<T>],
     ) {
-        fft.rows_forward_transposed(|r, row| self.pad.row(&plane, r, row), rowspec);
+        self.rows_forward_band_checked(fft, plane, rowspec, None);
+    }
+
+    /// [`Imager::rows_forward_band`], and with `unphysical` given, every image row is
+    /// tested ([`crate::scene::radiance_is_physical`]) just before it is padded, while it
+    /// is in cache: a NaN, ±Inf or negative value sets the flag (the caller then stops
+    /// and names the value, [`crate::io::DeferredCheck::run`]).
+    pub fn rows_forward_band_checked<T: FftFloat>(
+        &self,
+        fft: &RealFft2<T>,
+        plane: ArrayView2<f32>,
+        rowspec: &mut [num_complex::Complex<T>],
+        unphysical: Option<&AtomicBool>,
+    ) {
+        let image_rows = self.pad.y.image_range();
+        fft.rows_forward_transposed(
+            |r, row| {
+                if let (Some(flag), true) = (unphysical, image_rows.contains(&r)) {
+                    let source = plane.row(r - image_rows.start);
+                    let ok = match source.as_slice() {
+                        Some(s) => crate::scene::radiance_is_physical(s),
+                        None => source.iter().all(|v| *v >= 0.0 && *v <= f32::MAX),
+                    };
+                    if !ok {
+                        flag.store(true, Ordering::Relaxed);
+                    }
+                }
+                self.pad.row(&plane, r, row)
+            },
+            rowspec,
+        );
     }
 
     /// The detector image of an accumulated half-plane spectrum (`[fy, fx]`, the padded

@@ -34,6 +34,11 @@ pub(super) struct PadMap {
 }
 
 impl PadMap {
+    /// The padded indices that hold the image samples themselves, in order.
+    pub(super) fn image_range(&self) -> std::ops::Range<usize> {
+        self.before..self.before + self.n
+    }
+
     pub(super) fn new(n: usize, pad_before: usize, padded_len: usize) -> Self {
         let pad_total = padded_len - n;
         let taps = (0..padded_len)

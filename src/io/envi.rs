@@ -78,7 +78,7 @@ use super::binary::{
     check_size, decode_into, decode_strided, read_at, read_samples, PlanePool, SampleType,
     READ_BLOCK_BYTES,
 };
-use super::mapped::{map_plane, BandPlanes};
+use super::mapped::{map_plane, BandPlanes, DeferredCheck};
 use super::metadata::{
     default_units, order_bands, resolve_geometry, resolve_units, BandOrder, ReadOptions,
 };
@@ -840,10 +840,11 @@ impl EnviReader {
     }
 
     /// Output bands `bands` of a band-sequential file as views of memory maps of their
-    /// stored planes, each checked as `read_band` checks it; `None` when the file's data
+    /// stored planes, each checked as `read_band` checks it if `check` (else the caller
+    /// owes the check, see `CubeReader::read_planes_deferred`); `None` when the file's data
     /// cannot be served as it lies (not BSQ f32 in the machine's byte order, scaled or
     /// with a `data ignore value`, mapping turned off or failing): the caller reads.
-    fn map_bsq(&mut self, bands: &[usize]) -> Result<Option<BandPlanes>> {
+    fn map_bsq(&mut self, bands: &[usize], check: bool) -> Result<Option<BandPlanes>> {
         let native = self.big_endian == cfg!(target_endian = "big");
         if self.options.no_memory_map
             || self.map_failed
@@ -870,7 +871,9 @@ impl EnviReader {
             planes.push(plane);
         }
         let planes = BandPlanes::Mapped(planes);
-        planes.check(&self.data_path, bands, &self.meta.wavelength_um)?;
+        if check {
+            planes.check(&self.data_path, bands, &self.meta.wavelength_um)?;
+        }
         Ok(Some(planes))
     }
 
@@ -1122,9 +1125,28 @@ impl CubeReader for EnviReader {
         if bands.is_empty() {
             return Ok(BandPlanes::Owned(Vec::new()));
         }
-        match self.map_bsq(bands)? {
+        match self.map_bsq(bands, true)? {
             Some(planes) => Ok(planes),
             None => self.read_bands(frame, bands).map(BandPlanes::Owned),
+        }
+    }
+
+    /// As `read_planes`, the mapped planes unchecked (see the trait method).
+    fn read_planes_deferred(
+        &mut self,
+        frame: usize,
+        bands: &[usize],
+    ) -> Result<(BandPlanes, Option<DeferredCheck>)> {
+        self.check_request(frame, bands)?;
+        if bands.is_empty() {
+            return Ok((BandPlanes::Owned(Vec::new()), None));
+        }
+        match self.map_bsq(bands, false)? {
+            Some(planes) => {
+                let check = DeferredCheck::new(&self.data_path, bands, &self.meta.wavelength_um);
+                Ok((planes, Some(check)))
+            }
+            None => Ok((self.read_bands(frame, bands).map(BandPlanes::Owned)?, None)),
         }
     }
 

@@ -171,6 +171,34 @@ pub(crate) fn map_plane(
     map.as_f32().is_some().then_some((map, rows, cols))
 }
 
+/// What a caller needs to check planes read with
+/// [`crate::io::CubeReader::read_planes_deferred`] itself: their source and, per plane,
+/// band index and wavelength.
+#[derive(Debug, Clone)]
+pub struct DeferredCheck {
+    path: std::path::PathBuf,
+    bands: Vec<usize>,
+    wavelength_um: Vec<f64>,
+}
+
+impl DeferredCheck {
+    /// The check of `bands` of `path`, with the cube's wavelengths (indexed by band).
+    pub fn new(path: &std::path::Path, bands: &[usize], wavelength_um: &[f64]) -> Self {
+        DeferredCheck {
+            path: path.to_path_buf(),
+            bands: bands.to_vec(),
+            wavelength_um: wavelength_um.to_vec(),
+        }
+    }
+
+    /// The full check of `planes` (the planes it was made for), with the error every
+    /// reader gives ([`BandPlanes::check`]): for a caller whose own fast test
+    /// ([`crate::scene::radiance_is_physical`]) found a bad value, to name it.
+    pub fn run(&self, planes: &BandPlanes) -> crate::error::Result<()> {
+        planes.check(&self.path, &self.bands, &self.wavelength_um)
+    }
+}
+
 /// Band planes of one read ([`crate::io::CubeReader::read_planes`]): owned buffers, or
 /// views of memory maps of the input file (one per plane).
 #[derive(Debug)]

@@ -37,7 +37,7 @@ pub mod output;
 pub mod raster;
 pub(crate) mod spill;
 
-pub use mapped::BandPlanes;
+pub use mapped::{BandPlanes, DeferredCheck};
 pub use metadata::ReadOptions;
 
 /// A source of radiance planes: one or more frames of a cube with shared metadata.
@@ -70,6 +70,20 @@ pub trait CubeReader {
     /// imaging engine reads through this.
     fn read_planes(&mut self, frame: usize, bands: &[usize]) -> Result<BandPlanes> {
         self.read_bands(frame, bands).map(BandPlanes::Owned)
+    }
+    /// [`CubeReader::read_planes`], except that memory-mapped planes may come back
+    /// **unchecked**, with the [`DeferredCheck`] the caller then owes them: it must test
+    /// every value ([`crate::scene::radiance_is_physical`]) before it uses a plane and, if
+    /// a value fails, return [`DeferredCheck::run`]'s error. The imaging engine does this
+    /// row by row inside its row pass, where each row is in cache anyway, instead of
+    /// reading every mapped plane from memory once more. `None`: already checked (the
+    /// default).
+    fn read_planes_deferred(
+        &mut self,
+        frame: usize,
+        bands: &[usize],
+    ) -> Result<(BandPlanes, Option<DeferredCheck>)> {
+        Ok((self.read_planes(frame, bands)?, None))
     }
     /// Things the reader assumed or worked around that the user should know about
     /// (e.g. a unit the file did not state). Empty when the file was unambiguous.

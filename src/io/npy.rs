@@ -46,7 +46,7 @@ use crate::error::{Error, Result};
 use crate::scene::{check_radiance_plane, Cube, CubeMeta};
 
 use super::binary::{check_size, read_samples, PlanePool, SampleType};
-use super::mapped::{map_plane, BandPlanes};
+use super::mapped::{map_plane, BandPlanes, DeferredCheck};
 use super::metadata::{
     default_units, order_bands, resolve_geometry, resolve_units, BandOrder, ReadOptions,
 };
@@ -686,6 +686,19 @@ impl CubeReader for NpyReader {
     /// memory maps of the file (see [`super::mapped`]; the NPY header pads the data to a
     /// 64-byte boundary); everything else as [`CubeReader::read_bands`] reads it.
     fn read_planes(&mut self, frame: usize, bands: &[usize]) -> Result<BandPlanes> {
+        let (planes, check) = self.read_planes_deferred(frame, bands)?;
+        if let Some(check) = check {
+            check.run(&planes)?;
+        }
+        Ok(planes)
+    }
+
+    /// As `read_planes`, the mapped planes unchecked (see the trait method).
+    fn read_planes_deferred(
+        &mut self,
+        frame: usize,
+        bands: &[usize],
+    ) -> Result<(BandPlanes, Option<DeferredCheck>)> {
         let native = self.big_endian == cfg!(target_endian = "big");
         if self.options.no_memory_map
             || self.map_failed
@@ -694,7 +707,7 @@ impl CubeReader for NpyReader {
             || self.to_eoir != 1.0
             || bands.is_empty()
         {
-            return self.read_bands(frame, bands).map(BandPlanes::Owned);
+            return Ok((self.read_bands(frame, bands).map(BandPlanes::Owned)?, None));
         }
         let (rows, cols) = (self.meta.rows, self.meta.cols);
         let mut planes = Vec::with_capacity(bands.len());
@@ -702,13 +715,12 @@ impl CubeReader for NpyReader {
             let offset = self.plane_offset(frame, b)?;
             let Some(plane) = map_plane(&self.file, offset, rows, cols) else {
                 self.map_failed = true;
-                return self.read_bands(frame, bands).map(BandPlanes::Owned);
+                return Ok((self.read_bands(frame, bands).map(BandPlanes::Owned)?, None));
             };
             planes.push(plane);
         }
-        let planes = BandPlanes::Mapped(planes);
-        planes.check(&self.path, bands, &self.meta.wavelength_um)?;
-        Ok(planes)
+        let check = DeferredCheck::new(&self.path, bands, &self.meta.wavelength_um);
+        Ok((BandPlanes::Mapped(planes), Some(check)))
     }
 
     fn warnings(&self) -> Vec<String> {

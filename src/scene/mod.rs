@@ -195,6 +195,15 @@ impl Cube {
     }
 }
 
+/// Whether every value of `values` is a finite, non-negative radiance: the fast test of
+/// [`check_radiance_plane`] (one comparison pair per value, NaN fails both, no early
+/// exit, so it vectorises), which says where the first bad value is when this is false.
+pub fn radiance_is_physical(values: &[f32]) -> bool {
+    values
+        .iter()
+        .fold(true, |ok, v| ok & (*v >= 0.0) & (*v <= f32::MAX))
+}
+
 /// Checks one band plane for values that are not physical radiance (NaN, ±Inf, negative),
 /// naming the source, band and first offending pixel.
 pub fn check_radiance_plane(
@@ -203,14 +212,8 @@ pub fn check_radiance_plane(
     wavelength_um: f64,
     plane: ndarray::ArrayView2<f32>,
 ) -> Result<()> {
-    // Fast path: one comparison pair per value (NaN fails both), no index bookkeeping,
-    // and no early exit inside a block, so the compiler vectorises it.
-    let physical_block = |c: &[f32]| {
-        c.iter()
-            .fold(true, |ok, v| ok & (*v >= 0.0) & (*v <= f32::MAX))
-    };
     let all_physical = match plane.as_slice() {
-        Some(s) => s.chunks(4096).all(physical_block),
+        Some(s) => s.chunks(4096).all(radiance_is_physical),
         None => plane.iter().all(|v| *v >= 0.0 && *v <= f32::MAX),
     };
     if all_physical {

@@ -274,3 +274,86 @@ fn mapped_read_and_in_memory_planes_image_identically() {
         );
     }
 }
+
+/// A NaN, ±Inf or negative value in a band the engine uses stops the run with the
+/// reader's own message (band, wavelength, first bad pixel), whether the plane was mapped
+/// and checked row by row inside the row pass or read and checked by the reader: first
+/// band, a band of a later chunk, the last band; first and last pixel of the image.
+#[test]
+fn a_bad_value_in_a_used_band_stops_the_engine_with_the_readers_message() {
+    let s = sensor();
+    let clean = cases(&s).swap_remove(0);
+    let imager = Imager::new(
+        &s,
+        &clean.meta,
+        &clean.meta.geometry.unwrap(),
+        DEFAULT_WRAP_TOLERANCE,
+    )
+    .unwrap();
+    let active = imager.weights().active_bands();
+    assert!(active.len() > 2 * BANDS_PER_CHUNK);
+    let (_, rows, cols) = clean.data.dim();
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (active[0], 0, 0, f32::NAN),
+        (active[BANDS_PER_CHUNK + 1], rows - 1, cols - 1, -1.0),
+        (*active.last().unwrap(), rows / 2, 3, f32::INFINITY),
+    ];
+    for (k, (band, row, col, value)) in cases.into_iter().enumerate() {
+        let hdr = dir.path().join(format!("c{k}.hdr"));
+        let npy = dir.path().join(format!("c{k}.npy"));
+        eoir::io::envi::write(&hdr, &clean).unwrap();
+        eoir::io::npy::write(&npy, &clean).unwrap();
+        // Patch the value into each data file (BSQ / C order: [band, row, col] f32 LE at
+        // the end of the file).
+        let data_bytes = (clean.data.len() * 4) as u64;
+        for data in [hdr.with_extension("img"), npy.clone()] {
+            use std::io::{Seek, SeekFrom, Write};
+            let mut f = std::fs::OpenOptions::new().write(true).open(&data).unwrap();
+            let start = f.metadata().unwrap().len() - data_bytes;
+            let at = start + (((band * rows + row) * cols + col) * 4) as u64;
+            f.seek(SeekFrom::Start(at)).unwrap();
+            f.write_all(&value.to_le_bytes()).unwrap();
+        }
+        for no_memory_map in [false, true] {
+            let opts = eoir::io::ReadOptions {
+                no_memory_map,
+                ..Default::default()
+            };
+            let mut readers: Vec<Box<dyn CubeReader>> = vec![
+                Box::new(eoir::io::envi::EnviReader::open_with(&hdr, &opts).unwrap()),
+                Box::new(eoir::io::npy::NpyReader::open_with(&npy, &opts).unwrap()),
+            ];
+            let mut fresh: Vec<Box<dyn CubeReader>> = vec![
+                Box::new(eoir::io::envi::EnviReader::open_with(&hdr, &opts).unwrap()),
+                Box::new(eoir::io::npy::NpyReader::open_with(&npy, &opts).unwrap()),
+            ];
+            for (r, f) in readers.iter_mut().zip(fresh.iter_mut()) {
+                let got = imager
+                    .mean_electrons(r.as_mut(), 0, |_, _| {})
+                    .unwrap_err()
+                    .to_string();
+                let want = f.read_band(0, band).unwrap_err().to_string();
+                // Mapped, the reader hands the bad plane over unchecked, with the check
+                // owed; read, it checks the plane itself and refuses it.
+                match r.read_planes_deferred(0, &[band]) {
+                    Ok((planes, Some(owed))) => {
+                        assert!(!no_memory_map);
+                        assert_eq!(owed.run(&planes).unwrap_err().to_string(), want);
+                    }
+                    Ok((_, None)) => panic!("a bad plane handed over as checked"),
+                    Err(e) => {
+                        assert!(no_memory_map);
+                        assert_eq!(e.to_string(), want);
+                    }
+                }
+                assert_eq!(got, want, "case {k}, mapping off: {no_memory_map}");
+                assert!(
+                    got.contains(&format!("band {band} ("))
+                        && got.contains(&format!("row {row}, col {col}")),
+                    "{got}"
+                );
+            }
+        }
+    }
+}
