@@ -51,7 +51,9 @@ use std::sync::Arc;
 use ndarray::{s, Array2, ArrayView2, ArrayViewMut2, Axis};
 use num_complex::Complex;
 use rayon::prelude::*;
-use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
+use realfft::{ComplexToReal, RealFftPlanner};
+
+use super::r2c::RealForward;
 use rustfft::{Fft, FftNum, FftPlanner};
 
 /// Floating-point type of a transform (f32 or f64), with lossless widening to f64.
@@ -73,6 +75,13 @@ pub trait FftFloat: FftNum + Copy {
         pieces: &mut [&mut [Complex<Self>]],
     ) {
         store_tile_transposed_scalar(tile, hc, nr, t0, pieces, 0);
+    }
+
+    /// The untangling step of the real-to-complex row transform ([`super::r2c`]): pair i
+    /// is `left[i]` with `right[right.len() − 1 − i]` and twiddle `tw[i]` (all three the
+    /// same length). The same bits whatever the implementation.
+    fn untangle_r2c(tw: &[Complex<Self>], left: &mut [Complex<Self>], right: &mut [Complex<Self>]) {
+        super::r2c::untangle_pairs_scalar(tw, left, right);
     }
 }
 
@@ -137,6 +146,15 @@ unsafe fn store_tile8_transposed_avx(
 }
 
 impl FftFloat for f32 {
+    fn untangle_r2c(tw: &[Complex<Self>], left: &mut [Complex<Self>], right: &mut [Complex<Self>]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx") {
+            // SAFETY: the CPU supports AVX (checked just above).
+            unsafe { super::r2c::untangle_pairs_f32_avx(tw, left, right) };
+            return;
+        }
+        super::r2c::untangle_pairs_scalar(tw, left, right);
+    }
     #[inline]
     fn nearest_from_f64(x: f64) -> Self {
         x as f32
@@ -218,7 +236,7 @@ pub const BLOCK_COLS: usize = 16;
 pub struct RealFft2<T: FftFloat = f64> {
     rows: usize,
     cols: usize,
-    r2c: Arc<dyn RealToComplex<T>>,
+    r2c: RealForward<T>,
     c2r: Arc<dyn ComplexToReal<T>>,
     col_forward: Arc<dyn Fft<T>>,
     col_inverse: Arc<dyn Fft<T>>,
@@ -245,7 +263,7 @@ impl<T: FftFloat> RealFft2<T> {
         RealFft2 {
             rows,
             cols,
-            r2c: rp.plan_fft_forward(cols),
+            r2c: RealForward::new(cols),
             c2r: rp.plan_fft_inverse(cols),
             col_forward: cp.plan_fft_forward(rows),
             col_inverse: cp.plan_fft_inverse(rows),
@@ -286,8 +304,7 @@ impl<T: FftFloat> RealFft2<T> {
             || (vec![T::zero(); cols], self.r2c.make_scratch_vec()),
             |(row, sc), (r, o)| {
                 fill(r, row);
-                // Lengths match the plan by construction.
-                let _ = self.r2c.process_with_scratch(row, o, sc);
+                self.r2c.process(row, o, sc);
             },
         );
     }
@@ -341,8 +358,7 @@ impl<T: FftFloat> RealFft2<T> {
                     let nr = (len - t0).min(TILE_ROWS);
                     for (dr, spec) in tile.chunks_exact_mut(hc).take(nr).enumerate() {
                         fill(r0 + t0 + dr, row);
-                        // Lengths match the plan by construction.
-                        let _ = self.r2c.process_with_scratch(row, spec, sc);
+                        self.r2c.process(row, spec, sc);
                     }
                     T::store_tile_transposed(tile, hc, nr, t0, &mut pieces);
                 }

@@ -26,6 +26,7 @@ pub mod fft;
 pub mod otf_table;
 pub use accumulate::accumulate_chunk;
 mod padding;
+mod r2c;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
