@@ -34,6 +34,8 @@
 //! and independent of the number of threads, and independent of the detector's own temporal
 //! streams.
 
+use std::borrow::Cow;
+
 use ndarray::{Array2, Zip};
 use rand::{RngExt, SeedableRng};
 use rand_distr::StandardNormal;
@@ -55,24 +57,31 @@ const CLIP_SEARCH_SIGMAS: f64 = 10.0;
 /// Half-width (σ) of the exact sum over integer DN for a noise below [`DITHERED_SIGMA_DN`].
 const EXACT_SUM_SIGMAS: f64 = 8.0;
 
-/// The per-pixel maps of one instance, copied once for all levels.
-pub struct InstanceMaps {
-    gain: Array2<f64>,
-    offset_e: Array2<f64>,
-    quadratic: Array2<f64>,
-    defects: Array2<u8>,
-    stuck_dn: Option<Array2<u16>>,
+/// The per-pixel maps of one instance for all levels: borrowed where the instance stores
+/// them, built (constant) only where a pattern is off.
+pub struct InstanceMaps<'a> {
+    gain: Cow<'a, Array2<f64>>,
+    offset_e: Cow<'a, Array2<f64>>,
+    quadratic: Cow<'a, Array2<f64>>,
+    defects: &'a Array2<u8>,
+    stuck_dn: Option<&'a Array2<u16>>,
 }
 
-impl InstanceMaps {
+impl<'a> InstanceMaps<'a> {
     /// The maps of `instance`.
-    pub fn of(instance: &DetectorInstance) -> Self {
+    pub fn of(instance: &'a DetectorInstance) -> Self {
+        let [gain, offset_e, quadratic] = instance.stored_maps();
+        let shape = (instance.model().rows(), instance.model().cols());
+        let or = |map: Option<&'a Array2<f64>>, value: f64| match map {
+            Some(m) => Cow::Borrowed(m),
+            None => Cow::Owned(Array2::from_elem(shape, value)),
+        };
         InstanceMaps {
-            gain: instance.gain_map(),
-            offset_e: instance.offset_map_e(),
-            quadratic: instance.quadratic_map_per_e(),
-            defects: instance.defect_map().clone(),
-            stuck_dn: instance.stuck_dn_map().cloned(),
+            gain: or(gain, 1.0),
+            offset_e: or(offset_e, 0.0),
+            quadratic: or(quadratic, 0.0),
+            defects: instance.defect_map(),
+            stuck_dn: instance.stuck_dn_map(),
         }
     }
 }
@@ -186,7 +195,7 @@ fn pixel_moments(
 /// `frames` = 0.
 pub fn average(
     instance: &DetectorInstance,
-    maps: &InstanceMaps,
+    maps: &InstanceMaps<'_>,
     mean_e: &Array2<f64>,
     frames: usize,
     level_key: u64,

@@ -530,7 +530,7 @@ fn lookup_tables(
 /// The M-frame level averages of one instance, by either [`FrameRoute`].
 struct LevelAverager<'a> {
     instance: &'a DetectorInstance,
-    maps: Option<flat_field::InstanceMaps>,
+    maps: Option<flat_field::InstanceMaps<'a>>,
     frames: usize,
 }
 

@@ -460,6 +460,17 @@ impl DetectorInstance {
             .unwrap_or_else(|| Array2::ones((self.model.rows, self.model.cols)))
     }
 
+    /// The gain, offset (electrons) and quadratic-coefficient maps as stored, without a
+    /// copy: `None` where the pattern is off (gain 1, offset 0, coefficient 0 everywhere;
+    /// [`DetectorInstance::gain_map`] and its siblings return those as arrays).
+    pub fn stored_maps(&self) -> [Option<&Array2<f64>>; 3] {
+        [
+            self.gain.as_ref(),
+            self.offset_e.as_ref(),
+            self.quadratic.as_ref(),
+        ]
+    }
+
     /// Offset of every pixel, electrons (0 everywhere when no offset pattern is set).
     pub fn offset_map_e(&self) -> Array2<f64> {
         self.offset_e

@@ -135,7 +135,6 @@ impl NucCoefficients {
         }
         let shape = levels[0].1.dim();
         check_frame("levels[0]", levels[0].1)?;
-        let mut level_means = Vec::with_capacity(levels.len());
         for (l, (reference, frame)) in levels.iter().enumerate() {
             check_shape(&format!("levels[{l}]"), frame.dim(), shape)?;
             if !reference.is_finite() {
@@ -145,10 +144,27 @@ impl NucCoefficients {
                     "a finite reference signal",
                 ));
             }
-            let (sum, n) = frame
-                .iter()
-                .filter(|v| v.is_finite())
-                .fold((0.0, 0usize), |(s, n), &v| (s + v, n + 1));
+        }
+        // Each level's sum of finite pixels in row-major order (the levels side by side:
+        // each sum is one serial chain of additions, the same whatever the thread count).
+        let sums: Vec<(f64, usize)> = levels
+            .par_iter()
+            .map(|(_, frame)| {
+                let add = |(s, n): (f64, usize), &v: &f64| {
+                    if v.is_finite() {
+                        (s + v, n + 1)
+                    } else {
+                        (s, n)
+                    }
+                };
+                match frame.as_slice() {
+                    Some(values) => values.iter().fold((0.0, 0usize), add),
+                    None => frame.iter().fold((0.0, 0usize), add),
+                }
+            })
+            .collect();
+        let mut level_means = Vec::with_capacity(levels.len());
+        for (l, &(sum, n)) in sums.iter().enumerate() {
             if n == 0 {
                 return Err(Error::param(
                     format!("levels[{l}]"),
