@@ -426,8 +426,8 @@ mod tests {
     use super::*;
 
     /// The row path gives every pixel it settles the scalar path's value bit for bit, and
-    /// leaves the others (past the turning point, noise below 1 DN, near the ADC limits)
-    /// to it; both paths are exercised.
+    /// marks the others (past the turning point, noise below 1 DN, near the ADC limits) as
+    /// not settled, for the scalar path to overwrite; both paths are exercised.
     #[test]
     fn the_row_path_equals_pixel_moments_bit_for_bit() {
         let mut settled_total = 0;
@@ -460,8 +460,9 @@ mod tests {
             let z: Vec<f64> = (0..n)
                 .map(|j| ((j * 37 % 101) as f64 - 50.0) / 17.0)
                 .collect();
+            // The row path writes every pixel; only the settled ones are its to keep.
             let (mut avg, mut clipped, mut settled) =
-                (vec![f64::NAN; n], vec![false; n], vec![false; n]);
+                (vec![0.0; n], vec![false; n], vec![false; n]);
             let r = RowInputs {
                 signal: &signal,
                 gain: &gain,
