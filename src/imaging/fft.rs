@@ -83,6 +83,15 @@ pub trait FftFloat: FftNum + Copy {
     fn untangle_r2c(tw: &[Complex<Self>], left: &mut [Complex<Self>], right: &mut [Complex<Self>]) {
         super::r2c::untangle_pairs_scalar(tw, left, right);
     }
+
+    /// The same slices typed as f32, if `Self` is f32 (for loops written for f32 data
+    /// only, such as the AVX2 accumulation of [`super::accumulate_chunk`]); `None` for f64.
+    fn as_f32_slices<const N: usize>(
+        slices: [&[Complex<Self>]; N],
+    ) -> Option<[&[Complex<f32>]; N]> {
+        let _ = slices;
+        None
+    }
 }
 
 /// The portable [`FftFloat::store_tile_transposed`], from column `u0` on.
@@ -146,6 +155,11 @@ unsafe fn store_tile8_transposed_avx(
 }
 
 impl FftFloat for f32 {
+    fn as_f32_slices<const N: usize>(
+        slices: [&[Complex<Self>]; N],
+    ) -> Option<[&[Complex<f32>]; N]> {
+        Some(slices)
+    }
     fn untangle_r2c(tw: &[Complex<Self>], left: &mut [Complex<Self>], right: &mut [Complex<Self>]) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx") {

@@ -542,12 +542,40 @@ impl ChunkProfile {
         }
     }
 
+    /// The parts of the profile that a vectorised [`ChunkProfile::eval_all`] reads (the
+    /// AVX2 sample loop of `imaging::accumulate`).
+    pub(super) fn lanes(&self) -> ProfileLanes<'_> {
+        ProfileLanes {
+            values: &self.values,
+            inv_step: self.inv_step,
+            cut: self.cut,
+            plateau: self.plateau.as_ref().map(|p| (p.scale, p.end, p.beyond)),
+        }
+    }
+
     /// Band `band`'s chromatic product at `rho` (as [`ChunkProfile::eval_all`]).
     pub fn eval(&self, band: usize, rho: f64) -> f64 {
         let mut v = [0.0; CHUNK_LANES];
         self.eval_all(rho, &mut v);
         v[band]
     }
+}
+
+/// A [`ChunkProfile`]'s raw parts, as [`ChunkProfile::eval_all`] uses them: for ρ ≥ 0,
+/// `t = ρ·inv_step`, `i = min(⌊t⌋, len − 2)`, `frac = min(t − i, 1)`, lane c is
+/// `values[i][c] + frac·(values[i+1][c] − values[i][c])`, 0 where `ρ > cut[c]`; with a
+/// plateau `(scale, end, beyond)`, where `ρ·scale[c] > end[c]` for every lane c each lane
+/// is then multiplied by `beyond[c]` (otherwise [`ChunkProfile::eval_all`] evaluates the
+/// aerosol tables).
+pub(super) struct ProfileLanes<'a> {
+    /// The samples, `values[i][c]` (at least 2).
+    pub values: &'a [[f64; CHUNK_LANES]],
+    /// 1 / step.
+    pub inv_step: f64,
+    /// Per lane, where the band is cut to 0.
+    pub cut: [f64; CHUNK_LANES],
+    /// The aerosol plateau, `(scale, end, beyond)` by lane, if aerosol is on.
+    pub plateau: Option<([f64; CHUNK_LANES], [f64; CHUNK_LANES], [f64; CHUNK_LANES])>,
 }
 
 /// The chromatic transfer function of one band as a function of the radial frequency ρ
