@@ -140,6 +140,12 @@ fn accumulate_block_full<T: FftFloat>(
 ///    then the factor `(w_c·A)·g` and `acc += s·factor` for the two pairs of samples
 ///    (one 256-bit vector holds two complex f64), bands in order 0, 1, 2, 3.
 ///
+/// Two tests are made once per step rather than per band: where no sample is beyond the
+/// chunk's smallest cut, the cut masks are skipped (they would keep every value), and
+/// where every sample is above a bound past which every lane is certainly on its aerosol
+/// plateau (`(end/scale)(1 + 1e-12)`, far beyond the rounding of `ρ·scale`), the exact
+/// per-lane plateau test is skipped.
+///
 /// These are the scalar loop's IEEE operations in its order, lane by lane (no FMA), so the
 /// result is the same bit for bit (`the_f32_avx2_loop_equals_the_scalar_loop_bit_for_bit`).
 /// Steps where a sample has A = 0 (the scalar loop skips it) or where a sample is not past
@@ -182,6 +188,22 @@ unsafe fn accumulate_block_f32_avx2(
             beyond.map(|x| _mm256_set1_pd(x)),
         )
     });
+    // A ρ above which every lane is certainly past its aerosol table: for each lane
+    // ρ > (end/scale)(1 + 1e-12) gives ρ·scale > end in floating point (the margin is
+    // far above the two roundings); lanes past from ρ = 0 on (end < 0) do not limit it.
+    // +∞ (the exact test every step) if a lane's scale or end does not allow the bound.
+    let past_from = lanes.plateau.map_or(f64::INFINITY, |(sc, end, _)| {
+        sc.iter()
+            .zip(&end)
+            .fold(0.0, |from: f64, (&s, &e)| match (s > 0.0, e) {
+                (true, e) if e < 0.0 => from,
+                (true, e) if e > 0.0 && e.is_finite() => from.max(e / s * (1.0 + 1e-12)),
+                _ => f64::INFINITY,
+            })
+    });
+    let past_from = _mm256_set1_pd(past_from);
+    // Below the smallest cut no lane is cut: the per-band cut masks are skipped.
+    let first_cut = _mm256_set1_pd(lanes.cut.iter().copied().fold(f64::INFINITY, f64::min));
     // 4 × 4 transpose of f64 lanes: out[c][j] = x[j][c].
     let transpose = |x: [__m256d; 4]| {
         let (lo01, hi01) = (
@@ -208,7 +230,8 @@ unsafe fn accumulate_block_f32_avx2(
         let rho = _mm256_permute4x64_pd::<0b11_01_10_00>(_mm256_unpacklo_pd(r01, r23));
         let amp = _mm256_permute4x64_pd::<0b11_01_10_00>(_mm256_unpackhi_pd(r01, r23));
         let mut scalar = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_EQ_OQ>(amp, zero)) != 0;
-        if let Some((sc, end, _)) = &plateau {
+        let surely_past = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho, past_from));
+        if let (Some((sc, end, _)), false) = (&plateau, surely_past == 0b1111) {
             let mut past = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(rho, sc[0]), end[0]);
             for c in 1..CHUNK_LANES {
                 let p = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(rho, sc[c]), end[c]);
@@ -245,11 +268,16 @@ unsafe fn accumulate_block_f32_avx2(
         let b = [row(0, 1), row(1, 1), row(2, 1), row(3, 1)];
         let d = [0, 1, 2, 3].map(|j| _mm256_sub_pd(b[j], a[j]));
         let (a, d) = (transpose(a), transpose(d));
+        let any_cut = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho, first_cut)) != 0;
         let mut s01 = _mm256_loadu_pd(acc[k..k + 2].as_ptr().cast());
         let mut s23 = _mm256_loadu_pd(acc[k + 2..k + 4].as_ptr().cast());
         for c in 0..CHUNK_LANES {
             let v = _mm256_add_pd(a[c], _mm256_mul_pd(frac, d[c]));
-            let mut g = _mm256_andnot_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho, cut[c]), v);
+            let mut g = if any_cut {
+                _mm256_andnot_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho, cut[c]), v)
+            } else {
+                v
+            };
             if let Some((_, _, beyond)) = &plateau {
                 g = _mm256_mul_pd(g, beyond[c]);
             }
@@ -361,15 +389,22 @@ mod tests {
     /// spectra and compares every accumulator bit. The samples cover: ρ across each
     /// band's aperture cut and past the table's end, the aerosol core next to ρ = 0 (where
     /// the AVX2 loop hands its step to the scalar loop), A = +0 and −0 (skipped), runs of
-    /// samples that all take the vector path, and a tail of `n mod 4` samples.
+    /// samples that all take the vector path, and a tail of `n mod 4` samples. Without
+    /// diffraction (defocus and aberration only) a band's profile does not reach 0 at its
+    /// cut, so the cut itself is checked too.
     #[test]
     fn the_f32_avx2_loop_equals_the_scalar_loop_bit_for_bit() {
-        for aerosol in [false, true] {
+        for (aerosol, diffraction) in [(false, true), (true, true), (true, false)] {
+            let overrides = if diffraction {
+                vec![]
+            } else {
+                vec!["diffraction.enabled=false".to_string()]
+            };
             let cfg = SensorConfig::from_toml_str(
                 &swir(aerosol),
                 "swir.toml",
                 std::path::PathBuf::from("."),
-                &[],
+                &overrides,
             )
             .unwrap();
             let otf = Sensor::build(&cfg).unwrap().otf().clone();
@@ -421,7 +456,8 @@ mod tests {
             for (k, ((f, s), s0)) in fast.iter().zip(&slow).zip(&start).enumerate() {
                 assert!(
                     f.re.to_bits() == s.re.to_bits() && f.im.to_bits() == s.im.to_bits(),
-                    "aerosol {aerosol}, sample {k} (ρ {}, A {}): {f:?} against {s:?}",
+                    "aerosol {aerosol}, diffraction {diffraction}, sample {k} (ρ {}, A {}): \
+                     {f:?} against {s:?}",
                     radial[k][0],
                     radial[k][1]
                 );
