@@ -142,9 +142,9 @@ fn accumulate_block_full<T: FftFloat>(
 ///
 /// Two tests are made once per step rather than per band: where no sample is beyond the
 /// chunk's smallest cut, the cut masks are skipped (they would keep every value), and
-/// where every sample is above a bound past which every lane is certainly on its aerosol
-/// plateau (`(end/scale)(1 + 1e-12)`, far beyond the rounding of `ρ·scale`), the exact
-/// per-lane plateau test is skipped.
+/// where every sample is above the bound past which every lane is certainly on its aerosol
+/// plateau (the profile's, which [`ChunkProfile::eval_all`] uses too), the exact per-lane
+/// plateau test is skipped.
 ///
 /// These are the scalar loop's IEEE operations in its order, lane by lane (no FMA), so the
 /// result is the same bit for bit (`the_f32_avx2_loop_equals_the_scalar_loop_bit_for_bit`).
@@ -181,27 +181,15 @@ unsafe fn accumulate_block_f32_avx2(
     let one = _mm256_set1_pd(1.0);
     let cut = lanes.cut.map(|c| _mm256_set1_pd(c));
     let w = weights.map(|x| _mm256_set1_pd(x));
-    let plateau = lanes.plateau.map(|(sc, end, beyond)| {
+    let plateau = lanes.plateau.map(|(sc, end, beyond, _)| {
         (
             sc.map(|x| _mm256_set1_pd(x)),
             end.map(|x| _mm256_set1_pd(x)),
             beyond.map(|x| _mm256_set1_pd(x)),
         )
     });
-    // A ρ above which every lane is certainly past its aerosol table: for each lane
-    // ρ > (end/scale)(1 + 1e-12) gives ρ·scale > end in floating point (the margin is
-    // far above the two roundings); lanes past from ρ = 0 on (end < 0) do not limit it.
-    // +∞ (the exact test every step) if a lane's scale or end does not allow the bound.
-    let past_from = lanes.plateau.map_or(f64::INFINITY, |(sc, end, _)| {
-        sc.iter()
-            .zip(&end)
-            .fold(0.0, |from: f64, (&s, &e)| match (s > 0.0, e) {
-                (true, e) if e < 0.0 => from,
-                (true, e) if e > 0.0 && e.is_finite() => from.max(e / s * (1.0 + 1e-12)),
-                _ => f64::INFINITY,
-            })
-    });
-    let past_from = _mm256_set1_pd(past_from);
+    // Above it every lane is certainly past its aerosol table (`ChunkProfile`'s bound).
+    let past_from = _mm256_set1_pd(lanes.plateau.map_or(f64::INFINITY, |p| p.3));
     // Below the smallest cut no lane is cut: the per-band cut masks are skipped.
     let first_cut = _mm256_set1_pd(lanes.cut.iter().copied().fold(f64::INFINITY, f64::min));
     // 4 × 4 transpose of f64 lanes: out[c][j] = x[j][c].

@@ -464,6 +464,9 @@ struct AerosolPlateau {
     scale: [f64; CHUNK_LANES],
     end: [f64; CHUNK_LANES],
     beyond: [f64; CHUNK_LANES],
+    /// A ρ above which every lane is certainly past its table (see
+    /// [`AerosolPlateau::surely_past_from`]): one comparison instead of four products.
+    past_from: f64,
 }
 
 impl AerosolPlateau {
@@ -476,6 +479,7 @@ impl AerosolPlateau {
             scale: [1.0; CHUNK_LANES],
             end: [-1.0; CHUNK_LANES],
             beyond: [1.0; CHUNK_LANES],
+            past_from: f64::INFINITY,
         };
         for (c, a) in aerosol.iter().enumerate() {
             if let Some(a) = a {
@@ -484,7 +488,36 @@ impl AerosolPlateau {
                 p.beyond[c] = a.table.beyond;
             }
         }
+        p.past_from = Self::surely_past_from(&p.scale, &p.end);
         Some(p)
+    }
+
+    /// A ρ above which `ρ·scale[c] > end[c]` holds in floating point for every lane c:
+    /// the largest `(end/scale)(1 + 1e-12)` (the margin is far above the roundings of the
+    /// quotient and of `ρ·scale`); lanes past from ρ = 0 on (end < 0) do not limit it.
+    /// +∞ (the exact per-lane test always) if a lane's scale or end does not allow the
+    /// bound.
+    fn surely_past_from(scale: &[f64; CHUNK_LANES], end: &[f64; CHUNK_LANES]) -> f64 {
+        scale
+            .iter()
+            .zip(end)
+            .fold(0.0, |from: f64, (&s, &e)| match (s > 0.0, e) {
+                (true, e) if e < 0.0 => from,
+                (true, e) if e > 0.0 && e.is_finite() => from.max(e / s * (1.0 + 1e-12)),
+                _ => f64::INFINITY,
+            })
+    }
+
+    /// Whether every lane is past its aerosol table at `rho` (`ρ·scale > end` for all):
+    /// the bound first, the exact test only below it.
+    #[inline(always)]
+    fn all_past(&self, rho: f64) -> bool {
+        rho > self.past_from
+            || self
+                .scale
+                .iter()
+                .zip(&self.end)
+                .fold(true, |all, (s, e)| all & (rho * s > *e))
     }
 }
 
@@ -523,12 +556,7 @@ impl ChunkProfile {
             out[c] = if rho > self.cut[c] { 0.0 } else { v };
         }
         if let Some(p) = &self.plateau {
-            let all = p
-                .scale
-                .iter()
-                .zip(&p.end)
-                .fold(true, |all, (s, e)| all & (rho * s > *e));
-            if all {
+            if p.all_past(rho) {
                 for (o, b) in out.iter_mut().zip(&p.beyond) {
                     *o *= b;
                 }
@@ -549,7 +577,10 @@ impl ChunkProfile {
             values: &self.values,
             inv_step: self.inv_step,
             cut: self.cut,
-            plateau: self.plateau.as_ref().map(|p| (p.scale, p.end, p.beyond)),
+            plateau: self
+                .plateau
+                .as_ref()
+                .map(|p| (p.scale, p.end, p.beyond, p.past_from)),
         }
     }
 
@@ -561,12 +592,20 @@ impl ChunkProfile {
     }
 }
 
+/// An aerosol plateau by lane: `(scale, end, beyond, past_from)`.
+pub(super) type PlateauLanes = (
+    [f64; CHUNK_LANES],
+    [f64; CHUNK_LANES],
+    [f64; CHUNK_LANES],
+    f64,
+);
+
 /// A [`ChunkProfile`]'s raw parts, as [`ChunkProfile::eval_all`] uses them: for ρ ≥ 0,
 /// `t = ρ·inv_step`, `i = min(⌊t⌋, len − 2)`, `frac = min(t − i, 1)`, lane c is
 /// `values[i][c] + frac·(values[i+1][c] − values[i][c])`, 0 where `ρ > cut[c]`; with a
-/// plateau `(scale, end, beyond)`, where `ρ·scale[c] > end[c]` for every lane c each lane
-/// is then multiplied by `beyond[c]` (otherwise [`ChunkProfile::eval_all`] evaluates the
-/// aerosol tables).
+/// plateau `(scale, end, beyond, past_from)`, where `ρ·scale[c] > end[c]` for every lane
+/// c (always so for ρ > `past_from`) each lane is then multiplied by `beyond[c]`
+/// (otherwise [`ChunkProfile::eval_all`] evaluates the aerosol tables).
 pub(super) struct ProfileLanes<'a> {
     /// The samples, `values[i][c]` (at least 2).
     pub values: &'a [[f64; CHUNK_LANES]],
@@ -574,8 +613,9 @@ pub(super) struct ProfileLanes<'a> {
     pub inv_step: f64,
     /// Per lane, where the band is cut to 0.
     pub cut: [f64; CHUNK_LANES],
-    /// The aerosol plateau, `(scale, end, beyond)` by lane, if aerosol is on.
-    pub plateau: Option<([f64; CHUNK_LANES], [f64; CHUNK_LANES], [f64; CHUNK_LANES])>,
+    /// The aerosol plateau, `(scale, end, beyond)` by lane and the ρ above which every
+    /// lane is certainly on it, if aerosol is on.
+    pub plateau: Option<PlateauLanes>,
 }
 
 /// The chromatic transfer function of one band as a function of the radial frequency ρ
