@@ -340,6 +340,8 @@ mod tests {
     use crate::imaging::otf_table::RadialTables;
     use crate::sensor::{Sensor, SensorConfig};
     use num_complex::Complex;
+    use rand::{RngExt, SeedableRng};
+    use rand_xoshiro::Xoshiro256PlusPlus;
 
     /// The every-component SWIR sensor of the benchmarks (obscured aperture, aberration,
     /// defocus, turbulence, aerosol and the achromatic terms), 1.0–1.7 µm.
@@ -357,18 +359,6 @@ mod tests {
             SWIR.to_string()
         } else {
             format!("{}{}", &SWIR[..at], &SWIR[end..])
-        }
-    }
-
-    /// A deterministic pseudo-random sequence in [0, 1) (a 64-bit LCG's top bits).
-    struct Lcg(u64);
-    impl Lcg {
-        fn next(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
         }
     }
 
@@ -400,22 +390,22 @@ mod tests {
             let tables = RadialTables::new(&otf, 1.0, 1.7);
             let rho_max = 1.3 * otf.cutoff_cy_per_rad(1.0);
             let profile = tables.chunk_profile(&otf, &[1.0, 1.25, 1.5, 1.7], rho_max);
-            let mut rng = Lcg(0x5eed ^ aerosol as u64);
+            let mut rng = Xoshiro256PlusPlus::seed_from_u64(0x5eed ^ aerosol as u64);
             let n = 4 * 2500 + 3;
             let radial: Vec<[f64; 2]> = (0..n)
                 .map(|k| {
                     let rho = match k % 5 {
                         // Past the grid's end and across every cut.
-                        0 => 1.2 * rho_max * rng.next(),
+                        0 => 1.2 * rho_max * rng.random::<f64>(),
                         // The aerosol cores (ρ < a/λ, a few cycles/rad).
-                        1 if k < 400 => 3.0 * rng.next(),
+                        1 if k < 400 => 3.0 * rng.random::<f64>(),
                         // A smooth run, as along a column of the spectrum.
                         _ => rho_max * (k as f64 / n as f64),
                     };
                     let amp = match k % 97 {
                         13 => 0.0,
                         41 => -0.0,
-                        _ => 2.0 * rng.next() - 0.5,
+                        _ => 2.0 * rng.random::<f64>() - 0.5,
                     };
                     [rho, amp]
                 })
@@ -424,8 +414,8 @@ mod tests {
                 .map(|_| {
                     (0..n)
                         .map(|_| {
-                            let re = (1e3 * (rng.next() - 0.5)) as f32;
-                            Complex::new(re, (1e3 * (rng.next() - 0.5)) as f32)
+                            let re = (1e3 * (rng.random::<f64>() - 0.5)) as f32;
+                            Complex::new(re, (1e3 * (rng.random::<f64>() - 0.5)) as f32)
                         })
                         .collect()
                 })
@@ -434,7 +424,7 @@ mod tests {
                 std::array::from_fn(|c| spectra[c].as_slice());
             let weights = [0.7, 1.3e-3, 2.5, 0.11];
             let start: Vec<Complex64> = (0..n)
-                .map(|_| Complex64::new(rng.next() - 0.5, rng.next() - 0.5))
+                .map(|_| Complex64::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5))
                 .collect();
             let mut fast = start.clone();
             let mut slow = start.clone();
