@@ -163,6 +163,7 @@ unsafe fn accumulate_block_f32_avx2(
     weights: [f64; CHUNK_LANES],
     profile: &ChunkProfile,
 ) {
+    use super::fft::transpose_4x4_pd;
     use std::arch::x86_64::*;
     const _: () = assert!(CHUNK_LANES == 4);
     let n = acc.len().min(radial.len());
@@ -192,23 +193,6 @@ unsafe fn accumulate_block_f32_avx2(
     let past_from = _mm256_set1_pd(lanes.plateau.map_or(f64::INFINITY, |p| p.3));
     // Below the smallest cut no lane is cut: the per-band cut masks are skipped.
     let first_cut = _mm256_set1_pd(lanes.cut.iter().copied().fold(f64::INFINITY, f64::min));
-    // 4 × 4 transpose of f64 lanes: out[c][j] = x[j][c].
-    let transpose = |x: [__m256d; 4]| {
-        let (lo01, hi01) = (
-            _mm256_unpacklo_pd(x[0], x[1]),
-            _mm256_unpackhi_pd(x[0], x[1]),
-        );
-        let (lo23, hi23) = (
-            _mm256_unpacklo_pd(x[2], x[3]),
-            _mm256_unpackhi_pd(x[2], x[3]),
-        );
-        [
-            _mm256_permute2f128_pd(lo01, lo23, 0x20),
-            _mm256_permute2f128_pd(hi01, hi23, 0x20),
-            _mm256_permute2f128_pd(lo01, lo23, 0x31),
-            _mm256_permute2f128_pd(hi01, hi23, 0x31),
-        ]
-    };
     let steps = n / 4;
     for q in 0..steps {
         let k = 4 * q;
@@ -255,7 +239,7 @@ unsafe fn accumulate_block_f32_avx2(
         let a = [row(0, 0), row(1, 0), row(2, 0), row(3, 0)];
         let b = [row(0, 1), row(1, 1), row(2, 1), row(3, 1)];
         let d = [0, 1, 2, 3].map(|j| _mm256_sub_pd(b[j], a[j]));
-        let (a, d) = (transpose(a), transpose(d));
+        let (a, d) = (transpose_4x4_pd(a), transpose_4x4_pd(d));
         let any_cut = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho, first_cut)) != 0;
         let mut s01 = _mm256_loadu_pd(acc[k..k + 2].as_ptr().cast());
         let mut s23 = _mm256_loadu_pd(acc[k + 2..k + 4].as_ptr().cast());

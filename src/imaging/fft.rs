@@ -110,6 +110,35 @@ fn store_tile_transposed_scalar<C: Copy>(
     }
 }
 
+/// 4 × 4 transpose of 64-bit lanes, `out[c][j] = x[j][c]`, by unpacking and 128-bit
+/// permutes (a pure move of bits). Shared by the transposing store and the accumulation's
+/// AVX2 loop.
+///
+/// # Safety
+/// The CPU must support AVX; call it from a function compiled with AVX so that it is
+/// inlined.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(super) unsafe fn transpose_4x4_pd(
+    x: [std::arch::x86_64::__m256d; 4],
+) -> [std::arch::x86_64::__m256d; 4] {
+    use std::arch::x86_64::*;
+    let (lo01, hi01) = (
+        _mm256_unpacklo_pd(x[0], x[1]),
+        _mm256_unpackhi_pd(x[0], x[1]),
+    );
+    let (lo23, hi23) = (
+        _mm256_unpacklo_pd(x[2], x[3]),
+        _mm256_unpackhi_pd(x[2], x[3]),
+    );
+    [
+        _mm256_permute2f128_pd(lo01, lo23, 0x20),
+        _mm256_permute2f128_pd(hi01, hi23, 0x20),
+        _mm256_permute2f128_pd(lo01, lo23, 0x31),
+        _mm256_permute2f128_pd(hi01, hi23, 0x31),
+    ]
+}
+
 /// [`FftFloat::store_tile_transposed`] of a whole f32 tile ([`TILE_ROWS`] = 8 rows) with
 /// AVX: each complex f32 moved as one 64-bit lane, four columns at a time (two 4 × 4
 /// transposes by unpack and 128-bit permute), each column's 8 samples stored as 64
@@ -132,18 +161,8 @@ unsafe fn store_tile8_transposed_avx(
     for u in (0..n4).step_by(4) {
         // Row r, columns u..u+4: 4 complex f32 = 32 bytes, in bounds (u + 4 ≤ hc).
         let ld = |r: usize| _mm256_loadu_pd(tile[r * hc + u..r * hc + u + 4].as_ptr().cast());
-        let half = |a: __m256d, b: __m256d, c: __m256d, d: __m256d| {
-            let (ab_lo, ab_hi) = (_mm256_unpacklo_pd(a, b), _mm256_unpackhi_pd(a, b));
-            let (cd_lo, cd_hi) = (_mm256_unpacklo_pd(c, d), _mm256_unpackhi_pd(c, d));
-            [
-                _mm256_permute2f128_pd(ab_lo, cd_lo, 0x20),
-                _mm256_permute2f128_pd(ab_hi, cd_hi, 0x20),
-                _mm256_permute2f128_pd(ab_lo, cd_lo, 0x31),
-                _mm256_permute2f128_pd(ab_hi, cd_hi, 0x31),
-            ]
-        };
-        let top = half(ld(0), ld(1), ld(2), ld(3));
-        let bottom = half(ld(4), ld(5), ld(6), ld(7));
+        let top = transpose_4x4_pd([ld(0), ld(1), ld(2), ld(3)]);
+        let bottom = transpose_4x4_pd([ld(4), ld(5), ld(6), ld(7)]);
         for j in 0..4 {
             // Bounds-checked: 8 samples of column u + j from row t0 on.
             let dst = pieces[u + j][t0..t0 + TILE_ROWS].as_mut_ptr().cast::<f64>();
