@@ -81,7 +81,7 @@ fn kernels(c: &mut Criterion) {
                     &rowspecs,
                     &weights,
                     &profile,
-                    im.radial_samples(),
+                    im.radial_grid(),
                     &mut acc_t,
                 );
                 black_box(&acc_t);

@@ -86,7 +86,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 &rowspecs,
                 &weights,
                 &profile,
-                im.radial_samples(),
+                im.radial_grid(),
                 &mut acc,
             );
             let t2 = Instant::now();

@@ -1,8 +1,9 @@
 //! The fused column pass of the imaging engine: per block of column frequencies, the
 //! column transforms of a chunk's bands, their chromatic and achromatic transfer functions
 //! and the spectral weights, added to the frame's f64 accumulator while the block is in
-//! cache (see [`accumulate_chunk`]).
+//! cache (see [`accumulate_chunk`]), and the frequency samples it reads ([`RadialGrid`]).
 
+use ndarray::Array2;
 use num_complex::Complex64;
 use rayon::prelude::*;
 
@@ -10,6 +11,98 @@ use super::fft::{FftFloat, RealFft2, BLOCK_COLS};
 use super::otf_table::{ChunkProfile, CHUNK_LANES};
 #[cfg(doc)]
 use super::Imager;
+use crate::sensor::FrequencyGrid;
+
+/// The half-plane frequency samples of a padded frame as the fused accumulation reads them
+/// ([`accumulate_chunk`]), in the accumulator's transposed layout `[fx][fy]` (sample
+/// (fy index v, fx index u) at `u·rows + v`):
+/// - the radial frequency ρ (cycles/rad) is computed where it is used,
+///   [`radial_frequency`] from the squared axis frequencies (one per column and a table of
+///   one per row: a few KiB that stay in L1), not stored per sample;
+/// - the achromatic product A (every component that does not depend on λ: footprint,
+///   motion, jitter, Gaussian, measured MTFs) is stored once per sample, in f32.
+///
+/// The accumulation streams this array once per chunk of bands beside the f64 accumulator.
+/// Per sample it reads 4 bytes instead of the 16 of `[ρ, A]` in f64, which frees memory
+/// bandwidth and last-level cache for the row spectra. A in f32 is within 2^−24 (6e-8)
+/// relative of its f64 value, well inside the tables' 1e-6
+/// ([`super::otf_table::TABLE_TOLERANCE`]); ρ is the same f64 as before to an ulp.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RadialGrid {
+    /// fx² per column u, (cycles/rad)².
+    fx2: Vec<f64>,
+    /// fy² per row v, (cycles/rad)².
+    fy2: Vec<f64>,
+    /// A per sample, `[u·rows + v]`.
+    achromatic: Vec<f32>,
+}
+
+/// The radial frequency ρ = √(fx² + fy²) of a sample from its squared axis frequencies
+/// (cycles/rad): the one definition the engine uses, in the scalar and the vector loops
+/// alike (an IEEE addition and square root, both correctly rounded, so every loop gets the
+/// same bits).
+#[inline(always)]
+pub fn radial_frequency(fx2: f64, fy2: f64) -> f64 {
+    (fx2 + fy2).sqrt()
+}
+
+impl RadialGrid {
+    /// The samples of `grid` with the achromatic product `achromatic` (shape `[fy, fx]`,
+    /// as [`crate::sensor::GridOtf`] gives it).
+    ///
+    /// # Panics
+    /// If `achromatic`'s shape is not `[grid.fy.len(), grid.fx.len()]` (a caller error).
+    pub fn new(grid: &FrequencyGrid, achromatic: &Array2<f64>) -> Self {
+        let (rows, cols) = (grid.fy.len(), grid.fx.len());
+        assert_eq!(
+            achromatic.dim(),
+            (rows, cols),
+            "RadialGrid::new: the achromatic product's shape is not the grid's"
+        );
+        let mut a = vec![0.0f32; rows * cols];
+        a.par_chunks_mut(rows.max(1))
+            .enumerate()
+            .for_each(|(u, col)| {
+                for (v, x) in col.iter_mut().enumerate() {
+                    *x = achromatic[[v, u]] as f32;
+                }
+            });
+        RadialGrid {
+            fx2: grid.fx.iter().map(|f| f * f).collect(),
+            fy2: grid.fy.iter().map(|f| f * f).collect(),
+            achromatic: a,
+        }
+    }
+
+    /// Rows of the padded frame (fy samples).
+    pub fn rows(&self) -> usize {
+        self.fy2.len()
+    }
+
+    /// Column frequencies of the half plane (fx samples).
+    pub fn cols(&self) -> usize {
+        self.fx2.len()
+    }
+
+    /// ρ (cycles/rad) at fx index `u`, fy index `v`.
+    #[inline]
+    pub fn rho(&self, u: usize, v: usize) -> f64 {
+        radial_frequency(self.fx2[u], self.fy2[v])
+    }
+
+    /// The achromatic product (as stored, f32) at fx index `u`, fy index `v`.
+    #[inline]
+    pub fn achromatic(&self, u: usize, v: usize) -> f64 {
+        self.achromatic[u * self.rows() + v] as f64
+    }
+
+    /// The largest ρ on the grid, cycles/rad (0 for an empty grid).
+    pub fn rho_max(&self) -> f64 {
+        let fx2 = self.fx2.iter().copied().fold(0.0, f64::max);
+        let fy2 = self.fy2.iter().copied().fold(0.0, f64::max);
+        radial_frequency(fx2, fy2)
+    }
+}
 
 /// The fused column pass of a chunk of bands: for every block of [`BLOCK_COLS`] column
 /// frequencies (blocks in parallel), every band's columns are copied into a per-worker
@@ -19,10 +112,10 @@ use super::Imager;
 /// `acc += spec_b · w_b · A(f) · P_b(ρ(f))`, with A the achromatic product and P_b band
 /// b's chromatic profile, all bands interpolated at once from the chunk's common ρ grid
 /// ([`ChunkProfile::eval_all`]; no per-band OTF array, no frame-sized transpose; the
-/// accumulator and the ρ table are loaded once per chunk, not once per band). `acc_t`
-/// and `radial` are in the transposed `[fx][fy]` layout. Every sample is computed by one
-/// worker with the same operations in the same order whatever the thread count, so the
-/// result does not depend on it.
+/// accumulator and A are loaded once per chunk, not once per band). `acc_t` and `grid`
+/// are in the transposed `[fx][fy]` layout. Every sample is computed by one worker with
+/// the same operations in the same order whatever the thread count, so the result does
+/// not depend on it.
 ///
 /// `rowspecs[c]` is band c's transposed row pass ([`RealFft2::rows_forward_transposed`];
 /// only read: each block of it is copied into a per-worker buffer and transformed there,
@@ -33,10 +126,11 @@ pub fn accumulate_chunk<T: FftFloat, R: AsRef<[num_complex::Complex<T>]>>(
     rowspecs: &[R],
     weights: &[f64],
     profile: &ChunkProfile,
-    radial: &[[f64; 2]],
+    grid: &RadialGrid,
     acc_t: &mut [Complex64],
 ) {
     let rows = fft.shape().0;
+    debug_assert_eq!(rows, grid.rows());
     let nb = rowspecs.len().min(weights.len()).min(profile.bands());
     let block = BLOCK_COLS * rows;
     // Per block, every band's region of it (contiguous columns).
@@ -51,11 +145,12 @@ pub fn accumulate_chunk<T: FftFloat, R: AsRef<[num_complex::Complex<T>]>>(
     let zero = num_complex::Complex::new(T::zero(), T::zero());
     acc_t
         .par_chunks_mut(block)
-        .zip(radial.par_chunks(block))
+        .zip(grid.achromatic.par_chunks(block))
+        .zip(grid.fx2.par_chunks(BLOCK_COLS))
         .zip(regions.into_par_iter())
         .for_each_init(
             || (vec![zero; nb * block], fft.column_region_scratch()),
-            |(buf, sc), ((a, r), bands)| {
+            |(buf, sc), (((a, amp), fx2), bands)| {
                 // Each band's region is copied into the worker's buffer and transformed
                 // there: the row spectra are only read, so their cache lines stay clean
                 // and are never written back to memory.
@@ -68,29 +163,58 @@ pub fn accumulate_chunk<T: FftFloat, R: AsRef<[num_complex::Complex<T>]>>(
                 }
                 let bands = work;
                 let blocks: Vec<&[num_complex::Complex<T>]> = bands.iter().map(|b| &**b).collect();
+                let columns = ColumnBlock {
+                    fx2,
+                    fy2: &grid.fy2,
+                    achromatic: amp,
+                };
                 if let (Ok(blocks), Ok(w)) = (
                     <[&[num_complex::Complex<T>]; CHUNK_LANES]>::try_from(&blocks[..]),
                     <[f64; CHUNK_LANES]>::try_from(&weights[..nb]),
                 ) {
-                    accumulate_block_full(a, r, blocks, w, profile);
+                    accumulate_block_full(a, &columns, blocks, w, profile);
                     return;
                 }
                 let mut g = [0.0; CHUNK_LANES];
-                for (k, (a, p)) in a.iter_mut().zip(r).enumerate() {
-                    if p[1] == 0.0 {
-                        continue;
+                for (j, (a, amp)) in a.chunks_mut(rows).zip(amp.chunks(rows)).enumerate() {
+                    for (v, (a, amp)) in a.iter_mut().zip(amp).enumerate() {
+                        let amp = *amp as f64;
+                        if amp == 0.0 {
+                            continue;
+                        }
+                        profile.eval_all(radial_frequency(fx2[j], grid.fy2[v]), &mut g);
+                        let mut sum = *a;
+                        for ((blk, w), gc) in blocks.iter().zip(weights).zip(&g) {
+                            let s = blk[j * rows + v];
+                            let s = Complex64::new(s.re.widen(), s.im.widen());
+                            sum += s * (w * amp * gc);
+                        }
+                        *a = sum;
                     }
-                    profile.eval_all(p[0], &mut g);
-                    let mut sum = *a;
-                    for ((blk, w), gc) in blocks.iter().zip(weights).zip(&g) {
-                        let s = blk[k];
-                        let s = Complex64::new(s.re.widen(), s.im.widen());
-                        sum += s * (w * p[1] * gc);
-                    }
-                    *a = sum;
                 }
             },
         );
+}
+
+/// The frequency samples of one block of columns (see [`RadialGrid`]): fx² of each of its
+/// columns, fy² of every row, and A of every sample (`[column · rows + row]`).
+struct ColumnBlock<'a> {
+    fx2: &'a [f64],
+    fy2: &'a [f64],
+    achromatic: &'a [f32],
+}
+
+impl ColumnBlock<'_> {
+    /// The samples of column `j` (`j·rows ..`, clipped to a block of `len` samples and to
+    /// the block's A).
+    fn column(&self, j: usize, len: usize) -> std::ops::Range<usize> {
+        let rows = self.fy2.len();
+        let start = (j * rows).min(len);
+        let n = rows
+            .min(len - start)
+            .min(self.achromatic.len().saturating_sub(start));
+        start..start + n
+    }
 }
 
 /// [`accumulate_chunk`]'s sample loop for a full chunk ([`CHUNK_LANES`] bands): the same
@@ -107,7 +231,7 @@ pub fn accumulate_chunk<T: FftFloat, R: AsRef<[num_complex::Complex<T>]>>(
 #[inline(never)]
 fn accumulate_block_full<T: FftFloat>(
     acc: &mut [Complex64],
-    radial: &[[f64; 2]],
+    columns: &ColumnBlock,
     blocks: [&[num_complex::Complex<T>]; CHUNK_LANES],
     weights: [f64; CHUNK_LANES],
     profile: &ChunkProfile,
@@ -116,24 +240,25 @@ fn accumulate_block_full<T: FftFloat>(
     if std::arch::is_x86_feature_detected!("avx2") {
         if let Some(blocks) = T::as_f32_slices(blocks) {
             // SAFETY: the CPU supports AVX2 (checked just above).
-            unsafe { accumulate_block_f32_avx2(acc, radial, blocks, weights, profile) };
+            unsafe { accumulate_block_f32_avx2(acc, columns, blocks, weights, profile) };
         } else {
             // SAFETY: the CPU supports AVX2 (checked just above).
-            unsafe { accumulate_block_avx2(acc, radial, blocks, weights, profile) };
+            unsafe { accumulate_block_avx2(acc, columns, blocks, weights, profile) };
         }
         return;
     }
-    accumulate_block_body(acc, radial, blocks, weights, profile);
+    accumulate_block_body(acc, columns, blocks, weights, profile);
 }
 
-/// [`accumulate_block_body`] for f32 spectra, four frequency samples per step with AVX2
-/// intrinsics (the scalar loop spends most of its instructions moving single lanes: one
-/// table position, one weight and one factor at a time).
+/// [`accumulate_block_body`] for f32 spectra, four frequency samples (of one column) per
+/// step with AVX2 intrinsics (the scalar loop spends most of its instructions moving
+/// single lanes: one table position, one weight and one factor at a time).
 ///
 /// Per step of four samples, with the samples as the four lanes:
-/// 1. ρ and A of the four samples; the table position `i` and `frac` computed as
-///    [`ChunkProfile::eval_all`] computes them (`min(⌊max(t, 0)⌋, len − 2)` equals its
-///    saturating `t as u32` clamped to `len − 2`, and `min(t − i, 1)` its `frac`);
+/// 1. ρ = [`radial_frequency`]`(fx², fy²)` and A of the four samples; the table position
+///    `i` and `frac` computed as [`ChunkProfile::eval_all`] computes them
+///    (`min(⌊max(t, 0)⌋, len − 2)` equals its saturating `t as u32` clamped to `len − 2`,
+///    and `min(t − i, 1)` its `frac`);
 /// 2. the two table rows of each sample loaded (their lanes are the bands) and transposed
 ///    4 × 4 so that the lanes are the samples;
 /// 3. per band c: `a + frac·(b − a)`, 0 beyond the band's cut, times the aerosol plateau,
@@ -150,7 +275,8 @@ fn accumulate_block_full<T: FftFloat>(
 /// result is the same bit for bit (`the_f32_avx2_loop_equals_the_scalar_loop_bit_for_bit`).
 /// Steps where a sample has A = 0 (the scalar loop skips it) or where a sample is not past
 /// every band's aerosol table (the scalar loop then evaluates the tables; only next to
-/// ρ = 0) and the last `n mod 4` samples go through the scalar loop itself.
+/// ρ = 0) and the last `rows mod 4` samples of each column go through the scalar loop
+/// itself.
 ///
 /// # Safety
 /// The CPU must support AVX2 (`is_x86_feature_detected!("avx2")`).
@@ -158,7 +284,7 @@ fn accumulate_block_full<T: FftFloat>(
 #[target_feature(enable = "avx2")]
 unsafe fn accumulate_block_f32_avx2(
     acc: &mut [Complex64],
-    radial: &[[f64; 2]],
+    columns: &ColumnBlock,
     blocks: [&[num_complex::Complex<f32>]; CHUNK_LANES],
     weights: [f64; CHUNK_LANES],
     profile: &ChunkProfile,
@@ -166,13 +292,10 @@ unsafe fn accumulate_block_f32_avx2(
     use super::fft::transpose_4x4_pd;
     use std::arch::x86_64::*;
     const _: () = assert!(CHUNK_LANES == 4);
-    let n = acc.len().min(radial.len());
-    let (acc, radial) = (&mut acc[..n], &radial[..n]);
-    let blocks = blocks.map(|b| &b[..n]);
     let lanes = profile.lanes();
     let values = lanes.values;
     if values.len() < 2 {
-        accumulate_block_body(acc, radial, blocks, weights, profile);
+        accumulate_block_body(acc, columns, blocks, weights, profile);
         return;
     }
     let last = values.len() - 1;
@@ -193,86 +316,96 @@ unsafe fn accumulate_block_f32_avx2(
     let past_from = _mm256_set1_pd(lanes.plateau.map_or(f64::INFINITY, |p| p.3));
     // Below the smallest cut no lane is cut: the per-band cut masks are skipped.
     let first_cut = _mm256_set1_pd(lanes.cut.iter().copied().fold(f64::INFINITY, f64::min));
-    let steps = n / 4;
-    for q in 0..steps {
-        let k = 4 * q;
-        // [ρ0, A0, ρ1, A1] and [ρ2, A2, ρ3, A3] → [ρ0, ρ1, ρ2, ρ3] and [A0, A1, A2, A3].
-        let r01 = _mm256_loadu_pd(radial[k..k + 2].as_ptr().cast());
-        let r23 = _mm256_loadu_pd(radial[k + 2..k + 4].as_ptr().cast());
-        let rho = _mm256_permute4x64_pd::<0b11_01_10_00>(_mm256_unpacklo_pd(r01, r23));
-        let amp = _mm256_permute4x64_pd::<0b11_01_10_00>(_mm256_unpackhi_pd(r01, r23));
-        let mut scalar = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_EQ_OQ>(amp, zero)) != 0;
-        let surely_past = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho, past_from));
-        if let (Some((sc, end, _)), false) = (&plateau, surely_past == 0b1111) {
-            let mut past = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(rho, sc[0]), end[0]);
-            for c in 1..CHUNK_LANES {
-                let p = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(rho, sc[c]), end[c]);
-                past = _mm256_and_pd(past, p);
+    for (j, &fx2) in columns.fx2.iter().enumerate() {
+        let col = columns.column(j, acc.len());
+        let n = col.len();
+        let acc = &mut acc[col.clone()];
+        let amp = &columns.achromatic[col.clone()];
+        let fy2 = &columns.fy2[..n];
+        let blocks = blocks.map(|b| &b[col.clone()]);
+        let fx2v = _mm256_set1_pd(fx2);
+        let steps = n / 4;
+        for q in 0..steps {
+            let k = 4 * q;
+            let rho = _mm256_sqrt_pd(_mm256_add_pd(fx2v, _mm256_loadu_pd(fy2[k..k + 4].as_ptr())));
+            let amp4 = _mm256_cvtps_pd(_mm_loadu_ps(amp[k..k + 4].as_ptr()));
+            let mut scalar = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_EQ_OQ>(amp4, zero)) != 0;
+            let surely_past = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho, past_from));
+            if let (Some((sc, end, _)), false) = (&plateau, surely_past == 0b1111) {
+                let mut past = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(rho, sc[0]), end[0]);
+                for c in 1..CHUNK_LANES {
+                    let p = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(rho, sc[c]), end[c]);
+                    past = _mm256_and_pd(past, p);
+                }
+                scalar |= _mm256_movemask_pd(past) != 0b1111;
             }
-            scalar |= _mm256_movemask_pd(past) != 0b1111;
-        }
-        if scalar {
-            accumulate_block_body(
-                &mut acc[k..k + 4],
-                &radial[k..k + 4],
-                blocks.map(|b| &b[k..k + 4]),
-                weights,
-                profile,
-            );
-            continue;
-        }
-        let t = _mm256_mul_pd(rho, inv_step);
-        // 0 ≤ max(t, 0) clamped to len − 2 < 2^22: the conversion to i32 is exact.
-        let pos = _mm256_cvttpd_epi32(_mm256_min_pd(_mm256_max_pd(t, zero), top));
-        let frac = _mm256_min_pd(_mm256_sub_pd(t, _mm256_cvtepi32_pd(pos)), one);
-        let at = [
-            _mm_cvtsi128_si32(pos),
-            _mm_extract_epi32::<1>(pos),
-            _mm_extract_epi32::<2>(pos),
-            _mm_extract_epi32::<3>(pos),
-        ];
-        // SAFETY: each position is in 0 ..= len − 2 (clamped above), so rows i and i + 1
-        // are inside `values`.
-        let row = |j: usize, d: usize| {
-            _mm256_loadu_pd(values.as_ptr().add(at[j] as usize + d).cast::<f64>())
-        };
-        let a = [row(0, 0), row(1, 0), row(2, 0), row(3, 0)];
-        let b = [row(0, 1), row(1, 1), row(2, 1), row(3, 1)];
-        let d = [0, 1, 2, 3].map(|j| _mm256_sub_pd(b[j], a[j]));
-        let (a, d) = (transpose_4x4_pd(a), transpose_4x4_pd(d));
-        let any_cut = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho, first_cut)) != 0;
-        let mut s01 = _mm256_loadu_pd(acc[k..k + 2].as_ptr().cast());
-        let mut s23 = _mm256_loadu_pd(acc[k + 2..k + 4].as_ptr().cast());
-        for c in 0..CHUNK_LANES {
-            let v = _mm256_add_pd(a[c], _mm256_mul_pd(frac, d[c]));
-            let mut g = if any_cut {
-                _mm256_andnot_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho, cut[c]), v)
-            } else {
-                v
+            if scalar {
+                accumulate_samples(
+                    &mut acc[k..k + 4],
+                    fx2,
+                    &fy2[k..k + 4],
+                    &amp[k..k + 4],
+                    blocks.map(|b| &b[k..k + 4]),
+                    weights,
+                    profile,
+                );
+                continue;
+            }
+            let t = _mm256_mul_pd(rho, inv_step);
+            // 0 ≤ max(t, 0) clamped to len − 2 < 2^22: the conversion to i32 is exact.
+            let pos = _mm256_cvttpd_epi32(_mm256_min_pd(_mm256_max_pd(t, zero), top));
+            let frac = _mm256_min_pd(_mm256_sub_pd(t, _mm256_cvtepi32_pd(pos)), one);
+            let at = [
+                _mm_cvtsi128_si32(pos),
+                _mm_extract_epi32::<1>(pos),
+                _mm_extract_epi32::<2>(pos),
+                _mm_extract_epi32::<3>(pos),
+            ];
+            // SAFETY: each position is in 0 ..= len − 2 (clamped above), so rows i and
+            // i + 1 are inside `values`.
+            let row = |j: usize, d: usize| {
+                _mm256_loadu_pd(values.as_ptr().add(at[j] as usize + d).cast::<f64>())
             };
-            if let Some((_, _, beyond)) = &plateau {
-                g = _mm256_mul_pd(g, beyond[c]);
+            let a = [row(0, 0), row(1, 0), row(2, 0), row(3, 0)];
+            let b = [row(0, 1), row(1, 1), row(2, 1), row(3, 1)];
+            let d = [0, 1, 2, 3].map(|j| _mm256_sub_pd(b[j], a[j]));
+            let (a, d) = (transpose_4x4_pd(a), transpose_4x4_pd(d));
+            let any_cut = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho, first_cut)) != 0;
+            let mut s01 = _mm256_loadu_pd(acc[k..k + 2].as_ptr().cast());
+            let mut s23 = _mm256_loadu_pd(acc[k + 2..k + 4].as_ptr().cast());
+            for c in 0..CHUNK_LANES {
+                let v = _mm256_add_pd(a[c], _mm256_mul_pd(frac, d[c]));
+                let mut g = if any_cut {
+                    _mm256_andnot_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho, cut[c]), v)
+                } else {
+                    v
+                };
+                if let Some((_, _, beyond)) = &plateau {
+                    g = _mm256_mul_pd(g, beyond[c]);
+                }
+                let f = _mm256_mul_pd(_mm256_mul_pd(w[c], amp4), g);
+                // [f0, f0, f1, f1] and [f2, f2, f3, f3]: one factor per complex sample.
+                let f01 = _mm256_permute4x64_pd::<0b01_01_00_00>(f);
+                let f23 = _mm256_permute4x64_pd::<0b11_11_10_10>(f);
+                let x01 = _mm256_cvtps_pd(_mm_loadu_ps(blocks[c][k..k + 2].as_ptr().cast()));
+                let x23 = _mm256_cvtps_pd(_mm_loadu_ps(blocks[c][k + 2..k + 4].as_ptr().cast()));
+                s01 = _mm256_add_pd(s01, _mm256_mul_pd(x01, f01));
+                s23 = _mm256_add_pd(s23, _mm256_mul_pd(x23, f23));
             }
-            let f = _mm256_mul_pd(_mm256_mul_pd(w[c], amp), g);
-            // [f0, f0, f1, f1] and [f2, f2, f3, f3]: one factor per complex sample.
-            let f01 = _mm256_permute4x64_pd::<0b01_01_00_00>(f);
-            let f23 = _mm256_permute4x64_pd::<0b11_11_10_10>(f);
-            let x01 = _mm256_cvtps_pd(_mm_loadu_ps(blocks[c][k..k + 2].as_ptr().cast()));
-            let x23 = _mm256_cvtps_pd(_mm_loadu_ps(blocks[c][k + 2..k + 4].as_ptr().cast()));
-            s01 = _mm256_add_pd(s01, _mm256_mul_pd(x01, f01));
-            s23 = _mm256_add_pd(s23, _mm256_mul_pd(x23, f23));
+            _mm256_storeu_pd(acc[k..k + 2].as_mut_ptr().cast(), s01);
+            _mm256_storeu_pd(acc[k + 2..k + 4].as_mut_ptr().cast(), s23);
         }
-        _mm256_storeu_pd(acc[k..k + 2].as_mut_ptr().cast(), s01);
-        _mm256_storeu_pd(acc[k + 2..k + 4].as_mut_ptr().cast(), s23);
+        let k = 4 * steps;
+        accumulate_samples(
+            &mut acc[k..],
+            fx2,
+            &fy2[k..],
+            &amp[k..],
+            blocks.map(|b| &b[k..]),
+            weights,
+            profile,
+        );
     }
-    let k = 4 * steps;
-    accumulate_block_body(
-        &mut acc[k..],
-        &radial[k..],
-        blocks.map(|b| &b[k..]),
-        weights,
-        profile,
-    );
 }
 
 /// [`accumulate_block_body`] compiled for AVX2.
@@ -283,36 +416,68 @@ unsafe fn accumulate_block_f32_avx2(
 #[target_feature(enable = "avx2")]
 unsafe fn accumulate_block_avx2<T: FftFloat>(
     acc: &mut [Complex64],
-    radial: &[[f64; 2]],
+    columns: &ColumnBlock,
     blocks: [&[num_complex::Complex<T>]; CHUNK_LANES],
     weights: [f64; CHUNK_LANES],
     profile: &ChunkProfile,
 ) {
-    accumulate_block_body(acc, radial, blocks, weights, profile);
+    accumulate_block_body(acc, columns, blocks, weights, profile);
 }
 
-/// The sample loop of [`accumulate_block_full`].
+/// The sample loop of [`accumulate_block_full`], column by column.
 #[inline(always)]
 fn accumulate_block_body<T: FftFloat>(
     acc: &mut [Complex64],
-    radial: &[[f64; 2]],
+    columns: &ColumnBlock,
     blocks: [&[num_complex::Complex<T>]; CHUNK_LANES],
     weights: [f64; CHUNK_LANES],
     profile: &ChunkProfile,
 ) {
-    let n = acc.len().min(radial.len());
+    for (j, &fx2) in columns.fx2.iter().enumerate() {
+        let col = columns.column(j, acc.len());
+        accumulate_samples(
+            &mut acc[col.clone()],
+            fx2,
+            &columns.fy2[..col.len()],
+            &columns.achromatic[col.clone()],
+            blocks.map(|b| &b[col.clone()]),
+            weights,
+            profile,
+        );
+    }
+}
+
+/// Samples of one column (fx² = `fx2`; fy², A and each band's spectrum per sample):
+/// `acc += Σ_c s_c · ((w_c · A) · g_c(ρ))`, bands in order, samples with A = 0 skipped.
+#[inline(always)]
+fn accumulate_samples<T: FftFloat>(
+    acc: &mut [Complex64],
+    fx2: f64,
+    fy2: &[f64],
+    achromatic: &[f32],
+    blocks: [&[num_complex::Complex<T>]; CHUNK_LANES],
+    weights: [f64; CHUNK_LANES],
+    profile: &ChunkProfile,
+) {
+    let n = acc.len().min(fy2.len()).min(achromatic.len());
     let blocks = blocks.map(|b| &b[..n]);
     let mut g = [0.0; CHUNK_LANES];
-    for (k, (a, p)) in acc[..n].iter_mut().zip(&radial[..n]).enumerate() {
-        if p[1] == 0.0 {
+    for (k, ((a, fy2), amp)) in acc[..n]
+        .iter_mut()
+        .zip(&fy2[..n])
+        .zip(&achromatic[..n])
+        .enumerate()
+    {
+        let amp = *amp as f64;
+        if amp == 0.0 {
             continue;
         }
-        profile.eval_all(p[0], &mut g);
+        profile.eval_all(radial_frequency(fx2, *fy2), &mut g);
         let mut sum = *a;
         for c in 0..CHUNK_LANES {
             let s = blocks[c][k];
             let s = Complex64::new(s.re.widen(), s.im.widen());
-            sum += s * (weights[c] * p[1] * g[c]);
+            sum += s * (weights[c] * amp * g[c]);
         }
         *a = sum;
     }
@@ -375,25 +540,40 @@ mod tests {
             let rho_max = 1.3 * otf.cutoff_cy_per_rad(1.0);
             let profile = tables.chunk_profile(&otf, &[1.0, 1.25, 1.5, 1.7], rho_max);
             let mut rng = Xoshiro256PlusPlus::seed_from_u64(0x5eed ^ aerosol as u64);
-            let n = 4 * 2500 + 3;
-            let radial: Vec<[f64; 2]> = (0..n)
+            // Five columns of 2503 rows (a tail of 3 per column): fx = 0 and fx = 2
+            // cycles/rad (the aerosol cores next to ρ = 0), then columns further out, so
+            // that the cuts fall at different rows.
+            let rows = 2503;
+            let fx2: Vec<f64> = [0.0, 2.0, 0.2 * rho_max, 0.5 * rho_max, 0.9 * rho_max]
+                .iter()
+                .map(|f| f * f)
+                .collect();
+            let fy2: Vec<f64> = (0..rows)
                 .map(|k| {
-                    let rho = match k % 5 {
+                    let fy = match k % 5 {
                         // Past the grid's end and across every cut.
                         0 => 1.2 * rho_max * rng.random::<f64>(),
                         // The aerosol cores (ρ < a/λ, a few cycles/rad).
                         1 if k < 400 => 3.0 * rng.random::<f64>(),
                         // A smooth run, as along a column of the spectrum.
-                        _ => rho_max * (k as f64 / n as f64),
+                        _ => rho_max * (k as f64 / rows as f64),
                     };
-                    let amp = match k % 97 {
-                        13 => 0.0,
-                        41 => -0.0,
-                        _ => 2.0 * rng.random::<f64>() - 0.5,
-                    };
-                    [rho, amp]
+                    fy * fy
                 })
                 .collect();
+            let n = rows * fx2.len();
+            let achromatic: Vec<f32> = (0..n)
+                .map(|k| match k % 97 {
+                    13 => 0.0,
+                    41 => -0.0,
+                    _ => (2.0 * rng.random::<f64>() - 0.5) as f32,
+                })
+                .collect();
+            let columns = ColumnBlock {
+                fx2: &fx2,
+                fy2: &fy2,
+                achromatic: &achromatic,
+            };
             let spectra: Vec<Vec<Complex<f32>>> = (0..CHUNK_LANES)
                 .map(|_| {
                     (0..n)
@@ -412,21 +592,51 @@ mod tests {
                 .collect();
             let mut fast = start.clone();
             let mut slow = start.clone();
-            accumulate_block_full(&mut fast, &radial, blocks, weights, &profile);
-            accumulate_block_body(&mut slow, &radial, blocks, weights, &profile);
+            accumulate_block_full(&mut fast, &columns, blocks, weights, &profile);
+            accumulate_block_body(&mut slow, &columns, blocks, weights, &profile);
             let mut changed = 0;
             for (k, ((f, s), s0)) in fast.iter().zip(&slow).zip(&start).enumerate() {
                 assert!(
                     f.re.to_bits() == s.re.to_bits() && f.im.to_bits() == s.im.to_bits(),
                     "aerosol {aerosol}, diffraction {diffraction}, sample {k} (ρ {}, A {}): \
                      {f:?} against {s:?}",
-                    radial[k][0],
-                    radial[k][1]
+                    radial_frequency(fx2[k / rows], fy2[k % rows]),
+                    achromatic[k]
                 );
                 changed += (s != s0) as usize;
             }
             // Most samples received something (the loops did work, the test can fail).
             assert!(changed > n / 2, "only {changed} of {n} samples changed");
         }
+    }
+
+    /// The grid's ρ is the radial frequency of every sample (against `hypot`, to 2 ulp),
+    /// its A the achromatic product at the same sample in the transposed layout (to f32
+    /// rounding), and `rho_max` the largest ρ of any sample, exactly.
+    #[test]
+    fn radial_grid_holds_rho_and_the_achromatic_product_of_every_sample() {
+        let grid = FrequencyGrid::real_fft(30, 45, 1.7e-5, 2.3e-5);
+        let (rows, cols) = (grid.fy.len(), grid.fx.len());
+        let achromatic = Array2::from_shape_fn((rows, cols), |(v, u)| {
+            (0.3 * v as f64 + 0.07 * u as f64).cos() * 0.9
+        });
+        let g = RadialGrid::new(&grid, &achromatic);
+        assert_eq!((g.rows(), g.cols()), (30, 23));
+        let mut largest: f64 = 0.0;
+        for u in 0..cols {
+            for v in 0..rows {
+                let want = grid.fx[u].hypot(grid.fy[v]);
+                let rho = g.rho(u, v);
+                assert!(
+                    (rho - want).abs() <= 2.0 * f64::EPSILON * want,
+                    "({u}, {v})"
+                );
+                largest = largest.max(rho);
+                let a = achromatic[[v, u]];
+                assert_eq!(g.achromatic(u, v), a as f32 as f64, "({u}, {v})");
+                assert!((g.achromatic(u, v) - a).abs() <= a.abs() * 6e-8);
+            }
+        }
+        assert_eq!(g.rho_max(), largest);
     }
 }

@@ -24,7 +24,7 @@
 mod accumulate;
 pub mod fft;
 pub mod otf_table;
-pub use accumulate::accumulate_chunk;
+pub use accumulate::{accumulate_chunk, radial_frequency, RadialGrid};
 mod padding;
 mod r2c;
 
@@ -434,9 +434,10 @@ pub struct Imager {
     pad: FramePad,
     /// Chromatic components as 1-D tables, built once per run.
     tables: RadialTables,
-    /// Per half-plane frequency sample `[ρ (cycles/rad), achromatic product]`, in the
-    /// accumulator's transposed layout `[fx][fy]`: computed once per frame size.
-    radial: Vec<[f64; 2]>,
+    /// The half-plane frequency samples as the accumulation reads them (squared axis
+    /// frequencies for ρ, the achromatic product per sample), in the accumulator's
+    /// transposed layout `[fx][fy]`: computed once per frame size.
+    radial: RadialGrid,
     /// Largest ρ on the grid, cycles/rad.
     rho_max: f64,
 }
@@ -500,15 +501,9 @@ impl Imager {
             x: PadMap::new(meta.cols, sampling.x.pad_before, sampling.x.padded_len),
         };
         let achromatic = otf.on_grid(&grid).into_achromatic();
-        let ny = grid.fy.len();
-        let radial: Vec<[f64; 2]> = (0..grid.fx.len() * ny)
-            .into_par_iter()
-            .map(|i| {
-                let (u, v) = (i / ny, i % ny);
-                [grid.fx[u].hypot(grid.fy[v]), achromatic[[v, u]]]
-            })
-            .collect();
-        let rho_max = radial.par_iter().map(|p| p[0]).reduce(|| 0.0, f64::max);
+        let radial = RadialGrid::new(&grid, &achromatic);
+        drop(achromatic);
+        let rho_max = radial.rho_max();
         let (lo, hi) = active
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), l| {
@@ -765,10 +760,9 @@ impl Imager {
         e
     }
 
-    /// `[ρ (cycles/rad), achromatic OTF product]` per half-plane frequency sample, in the
-    /// accumulator's transposed layout: sample `(fy index v, fx index u)` at `u·rows + v`
-    /// (the `radial` argument of [`accumulate_chunk`]).
-    pub fn radial_samples(&self) -> &[[f64; 2]] {
+    /// The half-plane frequency samples (ρ and the achromatic product) as the accumulation
+    /// reads them (the `grid` argument of [`accumulate_chunk`]).
+    pub fn radial_grid(&self) -> &RadialGrid {
         &self.radial
     }
 
@@ -802,9 +796,9 @@ impl Imager {
     pub fn tabulated_otf(&self, wavelength_um: f64) -> Array2<f64> {
         let profile = self.band_profile(wavelength_um);
         let (ny, hc) = self.fft.spectrum_shape();
+        debug_assert_eq!((ny, hc), (self.radial.rows(), self.radial.cols()));
         Array2::from_shape_fn((ny, hc), |(j, k)| {
-            let p = self.radial[k * ny + j];
-            p[1] * profile.eval(p[0])
+            self.radial.achromatic(k, j) * profile.eval(self.radial.rho(k, j))
         })
     }
 
