@@ -16,34 +16,27 @@ use crate::sensor::FrequencyGrid;
 /// The half-plane frequency samples of a padded frame as the fused accumulation reads them
 /// ([`accumulate_chunk`]), in the accumulator's transposed layout `[fx][fy]` (sample
 /// (fy index v, fx index u) at `u·rows + v`):
-/// - the radial frequency ρ (cycles/rad) is computed where it is used,
-///   [`radial_frequency`] from the squared axis frequencies (one per column and a table of
-///   one per row: a few KiB that stay in L1), not stored per sample;
+/// - the radial frequency ρ = `fx.hypot(fy)` (cycles/rad) is stored for the rows
+///   `v = 0 ..= rows/2` of each column only: ρ is even in fy and the frequency of row
+///   `rows − v` is exactly minus that of row v, so the other rows read the same value
+///   mirrored (a column's half, a few KiB, is still in L1 when the mirrored rows need it);
 /// - the achromatic product A (every component that does not depend on λ: footprint,
-///   motion, jitter, Gaussian, measured MTFs) is stored once per sample, in f32.
+///   motion, jitter, Gaussian, measured MTFs; not even in fy, for a smear at an angle) is
+///   stored for every sample, in f32.
 ///
 /// The accumulation streams this array once per chunk of bands beside the f64 accumulator.
-/// Per sample it reads 4 bytes instead of the 16 of `[ρ, A]` in f64, which frees memory
-/// bandwidth and last-level cache for the row spectra. A in f32 is within 2^−24 (6e-8)
-/// relative of its f64 value, well inside the tables' 1e-6
-/// ([`super::otf_table::TABLE_TOLERANCE`]); ρ is the same f64 as before to an ulp.
+/// Per sample it reads about 8 bytes instead of the 16 of `[ρ, A]` in f64, which frees
+/// memory bandwidth and last-level cache for the row spectra; ρ keeps its f64 bits, and A
+/// in f32 is within 2^−24 (6e-8) relative of its f64 value, well inside the tables' 1e-6
+/// ([`super::otf_table::TABLE_TOLERANCE`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RadialGrid {
-    /// fx² per column u, (cycles/rad)².
-    fx2: Vec<f64>,
-    /// fy² per row v, (cycles/rad)².
-    fy2: Vec<f64>,
+    /// Rows of the padded frame (fy samples).
+    rows: usize,
+    /// ρ of rows `0 ..= rows/2` of each column, `[u·(rows/2 + 1) + v]`.
+    rho: Vec<f64>,
     /// A per sample, `[u·rows + v]`.
     achromatic: Vec<f32>,
-}
-
-/// The radial frequency ρ = √(fx² + fy²) of a sample from its squared axis frequencies
-/// (cycles/rad): the one definition the engine uses, in the scalar and the vector loops
-/// alike (an IEEE addition and square root, both correctly rounded, so every loop gets the
-/// same bits).
-#[inline(always)]
-pub fn radial_frequency(fx2: f64, fy2: f64) -> f64 {
-    (fx2 + fy2).sqrt()
 }
 
 impl RadialGrid {
@@ -59,6 +52,7 @@ impl RadialGrid {
             (rows, cols),
             "RadialGrid::new: the achromatic product's shape is not the grid's"
         );
+        let half = rows / 2 + 1;
         let mut a = vec![0.0f32; rows * cols];
         a.par_chunks_mut(rows.max(1))
             .enumerate()
@@ -67,40 +61,51 @@ impl RadialGrid {
                     *x = achromatic[[v, u]] as f32;
                 }
             });
+        let rho = if rows == 0 {
+            Vec::new()
+        } else {
+            (0..cols * half)
+                .into_par_iter()
+                .map(|i| grid.fx[i / half].hypot(grid.fy[i % half]))
+                .collect()
+        };
         RadialGrid {
-            fx2: grid.fx.iter().map(|f| f * f).collect(),
-            fy2: grid.fy.iter().map(|f| f * f).collect(),
+            rows,
+            rho,
             achromatic: a,
         }
     }
 
     /// Rows of the padded frame (fy samples).
     pub fn rows(&self) -> usize {
-        self.fy2.len()
+        self.rows
     }
 
     /// Column frequencies of the half plane (fx samples).
     pub fn cols(&self) -> usize {
-        self.fx2.len()
+        self.achromatic.len().checked_div(self.rows).unwrap_or(0)
+    }
+
+    /// ρ values stored per column (rows `0 ..= rows/2`).
+    fn half(&self) -> usize {
+        self.rows / 2 + 1
     }
 
     /// ρ (cycles/rad) at fx index `u`, fy index `v`.
     #[inline]
     pub fn rho(&self, u: usize, v: usize) -> f64 {
-        radial_frequency(self.fx2[u], self.fy2[v])
+        self.rho[u * self.half() + v.min(self.rows - v)]
     }
 
     /// The achromatic product (as stored, f32) at fx index `u`, fy index `v`.
     #[inline]
     pub fn achromatic(&self, u: usize, v: usize) -> f64 {
-        self.achromatic[u * self.rows() + v] as f64
+        self.achromatic[u * self.rows + v] as f64
     }
 
     /// The largest ρ on the grid, cycles/rad (0 for an empty grid).
     pub fn rho_max(&self) -> f64 {
-        let fx2 = self.fx2.iter().copied().fold(0.0, f64::max);
-        let fy2 = self.fy2.iter().copied().fold(0.0, f64::max);
-        radial_frequency(fx2, fy2)
+        self.rho.iter().copied().fold(0.0, f64::max)
     }
 }
 
@@ -143,14 +148,15 @@ pub fn accumulate_chunk<T: FftFloat, R: AsRef<[num_complex::Complex<T>]>>(
         }
     }
     let zero = num_complex::Complex::new(T::zero(), T::zero());
+    let half = grid.half();
     acc_t
         .par_chunks_mut(block)
         .zip(grid.achromatic.par_chunks(block))
-        .zip(grid.fx2.par_chunks(BLOCK_COLS))
+        .zip(grid.rho.par_chunks(BLOCK_COLS * half))
         .zip(regions.into_par_iter())
         .for_each_init(
             || (vec![zero; nb * block], fft.column_region_scratch()),
-            |(buf, sc), (((a, amp), fx2), bands)| {
+            |(buf, sc), (((a, amp), rho), bands)| {
                 // Each band's region is copied into the worker's buffer and transformed
                 // there: the row spectra are only read, so their cache lines stay clean
                 // and are never written back to memory.
@@ -164,8 +170,8 @@ pub fn accumulate_chunk<T: FftFloat, R: AsRef<[num_complex::Complex<T>]>>(
                 let bands = work;
                 let blocks: Vec<&[num_complex::Complex<T>]> = bands.iter().map(|b| &**b).collect();
                 let columns = ColumnBlock {
-                    fx2,
-                    fy2: &grid.fy2,
+                    rows,
+                    rho,
                     achromatic: amp,
                 };
                 if let (Ok(blocks), Ok(w)) = (
@@ -182,7 +188,7 @@ pub fn accumulate_chunk<T: FftFloat, R: AsRef<[num_complex::Complex<T>]>>(
                         if amp == 0.0 {
                             continue;
                         }
-                        profile.eval_all(radial_frequency(fx2[j], grid.fy2[v]), &mut g);
+                        profile.eval_all(rho[j * half + v.min(rows - v)], &mut g);
                         let mut sum = *a;
                         for ((blk, w), gc) in blocks.iter().zip(weights).zip(&g) {
                             let s = blk[j * rows + v];
@@ -196,24 +202,26 @@ pub fn accumulate_chunk<T: FftFloat, R: AsRef<[num_complex::Complex<T>]>>(
         );
 }
 
-/// The frequency samples of one block of columns (see [`RadialGrid`]): fx² of each of its
-/// columns, fy² of every row, and A of every sample (`[column · rows + row]`).
+/// The frequency samples of one block of whole columns (see [`RadialGrid`]): the rows of a
+/// column, ρ of rows `0 ..= rows/2` of each column (`[column · (rows/2 + 1) + row]`) and A
+/// of every sample (`[column · rows + row]`).
 struct ColumnBlock<'a> {
-    fx2: &'a [f64],
-    fy2: &'a [f64],
+    rows: usize,
+    rho: &'a [f64],
     achromatic: &'a [f32],
 }
 
 impl ColumnBlock<'_> {
-    /// The samples of column `j` (`j·rows ..`, clipped to a block of `len` samples and to
-    /// the block's A).
-    fn column(&self, j: usize, len: usize) -> std::ops::Range<usize> {
-        let rows = self.fy2.len();
-        let start = (j * rows).min(len);
-        let n = rows
-            .min(len - start)
-            .min(self.achromatic.len().saturating_sub(start));
-        start..start + n
+    /// The columns of the block: per column, its samples (`j·rows ..`, clipped to a block
+    /// of `len` samples and to the block's A) and its stored half of ρ.
+    fn columns(&self, len: usize) -> impl Iterator<Item = (std::ops::Range<usize>, &[f64])> {
+        let (rows, half) = (self.rows, self.rows / 2 + 1);
+        let len = len.min(self.achromatic.len());
+        self.rho
+            .chunks_exact(half)
+            .enumerate()
+            .map(move |(j, rho)| ((j * rows).min(len)..((j + 1) * rows).min(len), rho))
+            .filter(move |(col, _)| col.len() == rows)
     }
 }
 
@@ -250,15 +258,27 @@ fn accumulate_block_full<T: FftFloat>(
     accumulate_block_body(acc, columns, blocks, weights, profile);
 }
 
+/// One column of a block split where its ρ is read: rows `0 ..= rows/2` in order from the
+/// stored half (`rho[..h]`, `Forward`), the rows above from the same half mirrored (row
+/// `rows − v`: `rho[1 ..= rows − h]` read backwards, `Mirrored`), so that every sample
+/// loop only ever reads ρ as one slice, in order or reversed.
+#[inline(always)]
+fn column_segments(rows: usize, rho: &[f64]) -> [(std::ops::Range<usize>, &[f64]); 2] {
+    let h = (rows / 2 + 1).min(rows).min(rho.len());
+    let upper = (rows - h).min(rho.len().saturating_sub(1));
+    [(0..h, &rho[..h]), (h..h + upper, &rho[1..1 + upper])]
+}
+
 /// [`accumulate_block_body`] for f32 spectra, four frequency samples (of one column) per
 /// step with AVX2 intrinsics (the scalar loop spends most of its instructions moving
 /// single lanes: one table position, one weight and one factor at a time).
 ///
 /// Per step of four samples, with the samples as the four lanes:
-/// 1. ρ = [`radial_frequency`]`(fx², fy²)` and A of the four samples; the table position
-///    `i` and `frac` computed as [`ChunkProfile::eval_all`] computes them
-///    (`min(⌊max(t, 0)⌋, len − 2)` equals its saturating `t as u32` clamped to `len − 2`,
-///    and `min(t − i, 1)` its `frac`);
+/// 1. ρ (four stored values, reversed in the upper half of the column, see
+///    [`RadialGrid`]) and A of the four samples; the table position `i` and `frac`
+///    computed as [`ChunkProfile::eval_all`] computes them (`min(⌊max(t, 0)⌋, len − 2)`
+///    equals its saturating `t as u32` clamped to `len − 2`, and `min(t − i, 1)` its
+///    `frac`);
 /// 2. the two table rows of each sample loaded (their lanes are the bands) and transposed
 ///    4 × 4 so that the lanes are the samples;
 /// 3. per band c: `a + frac·(b − a)`, 0 beyond the band's cut, times the aerosol plateau,
@@ -275,7 +295,7 @@ fn accumulate_block_full<T: FftFloat>(
 /// result is the same bit for bit (`the_f32_avx2_loop_equals_the_scalar_loop_bit_for_bit`).
 /// Steps where a sample has A = 0 (the scalar loop skips it) or where a sample is not past
 /// every band's aerosol table (the scalar loop then evaluates the tables; only next to
-/// ρ = 0) and the last `rows mod 4` samples of each column go through the scalar loop
+/// ρ = 0) and the last `len mod 4` samples of each half column go through the scalar loop
 /// itself.
 ///
 /// # Safety
@@ -316,95 +336,113 @@ unsafe fn accumulate_block_f32_avx2(
     let past_from = _mm256_set1_pd(lanes.plateau.map_or(f64::INFINITY, |p| p.3));
     // Below the smallest cut no lane is cut: the per-band cut masks are skipped.
     let first_cut = _mm256_set1_pd(lanes.cut.iter().copied().fold(f64::INFINITY, f64::min));
-    for (j, &fx2) in columns.fx2.iter().enumerate() {
-        let col = columns.column(j, acc.len());
-        let n = col.len();
-        let acc = &mut acc[col.clone()];
-        let amp = &columns.achromatic[col.clone()];
-        let fy2 = &columns.fy2[..n];
-        let blocks = blocks.map(|b| &b[col.clone()]);
-        let fx2v = _mm256_set1_pd(fx2);
-        let steps = n / 4;
-        for q in 0..steps {
-            let k = 4 * q;
-            let rho = _mm256_sqrt_pd(_mm256_add_pd(fx2v, _mm256_loadu_pd(fy2[k..k + 4].as_ptr())));
-            let amp4 = _mm256_cvtps_pd(_mm_loadu_ps(amp[k..k + 4].as_ptr()));
-            let mut scalar = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_EQ_OQ>(amp4, zero)) != 0;
-            let surely_past = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho, past_from));
-            if let (Some((sc, end, _)), false) = (&plateau, surely_past == 0b1111) {
-                let mut past = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(rho, sc[0]), end[0]);
-                for c in 1..CHUNK_LANES {
-                    let p = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(rho, sc[c]), end[c]);
-                    past = _mm256_and_pd(past, p);
-                }
-                scalar |= _mm256_movemask_pd(past) != 0b1111;
-            }
-            if scalar {
-                accumulate_samples(
-                    &mut acc[k..k + 4],
-                    fx2,
-                    &fy2[k..k + 4],
-                    &amp[k..k + 4],
-                    blocks.map(|b| &b[k..k + 4]),
-                    weights,
-                    profile,
-                );
-                continue;
-            }
-            let t = _mm256_mul_pd(rho, inv_step);
-            // 0 ≤ max(t, 0) clamped to len − 2 < 2^22: the conversion to i32 is exact.
-            let pos = _mm256_cvttpd_epi32(_mm256_min_pd(_mm256_max_pd(t, zero), top));
-            let frac = _mm256_min_pd(_mm256_sub_pd(t, _mm256_cvtepi32_pd(pos)), one);
-            let at = [
-                _mm_cvtsi128_si32(pos),
-                _mm_extract_epi32::<1>(pos),
-                _mm_extract_epi32::<2>(pos),
-                _mm_extract_epi32::<3>(pos),
-            ];
-            // SAFETY: each position is in 0 ..= len − 2 (clamped above), so rows i and
-            // i + 1 are inside `values`.
-            let row = |j: usize, d: usize| {
-                _mm256_loadu_pd(values.as_ptr().add(at[j] as usize + d).cast::<f64>())
-            };
-            let a = [row(0, 0), row(1, 0), row(2, 0), row(3, 0)];
-            let b = [row(0, 1), row(1, 1), row(2, 1), row(3, 1)];
-            let d = [0, 1, 2, 3].map(|j| _mm256_sub_pd(b[j], a[j]));
-            let (a, d) = (transpose_4x4_pd(a), transpose_4x4_pd(d));
-            let any_cut = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho, first_cut)) != 0;
-            let mut s01 = _mm256_loadu_pd(acc[k..k + 2].as_ptr().cast());
-            let mut s23 = _mm256_loadu_pd(acc[k + 2..k + 4].as_ptr().cast());
-            for c in 0..CHUNK_LANES {
-                let v = _mm256_add_pd(a[c], _mm256_mul_pd(frac, d[c]));
-                let mut g = if any_cut {
-                    _mm256_andnot_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho, cut[c]), v)
+    for (col, rho_half) in columns.columns(acc.len()) {
+        for (si, (seg, rho)) in column_segments(columns.rows, rho_half)
+            .into_iter()
+            .enumerate()
+        {
+            let mirrored = si == 1;
+            let n = seg.len();
+            let (s0, s1) = (col.start + seg.start, col.start + seg.end);
+            let acc = &mut acc[s0..s1];
+            let amp = &columns.achromatic[s0..s1];
+            let blocks = blocks.map(|b| &b[s0..s1]);
+            let steps = n / 4;
+            for q in 0..steps {
+                let k = 4 * q;
+                // Samples k .. k + 4 read ρ at k .. k + 4, or mirrored at
+                // n − 1 − k down to n − 4 − k.
+                let rho4 = if mirrored {
+                    let r = _mm256_loadu_pd(rho[n - 4 - k..n - k].as_ptr());
+                    _mm256_permute4x64_pd::<0b00_01_10_11>(r)
                 } else {
-                    v
+                    _mm256_loadu_pd(rho[k..k + 4].as_ptr())
                 };
-                if let Some((_, _, beyond)) = &plateau {
-                    g = _mm256_mul_pd(g, beyond[c]);
+                let amp4 = _mm256_cvtps_pd(_mm_loadu_ps(amp[k..k + 4].as_ptr()));
+                let mut scalar = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_EQ_OQ>(amp4, zero)) != 0;
+                let surely_past = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho4, past_from));
+                if let (Some((sc, end, _)), false) = (&plateau, surely_past == 0b1111) {
+                    let mut past = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(rho4, sc[0]), end[0]);
+                    for c in 1..CHUNK_LANES {
+                        let p = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(rho4, sc[c]), end[c]);
+                        past = _mm256_and_pd(past, p);
+                    }
+                    scalar |= _mm256_movemask_pd(past) != 0b1111;
                 }
-                let f = _mm256_mul_pd(_mm256_mul_pd(w[c], amp4), g);
-                // [f0, f0, f1, f1] and [f2, f2, f3, f3]: one factor per complex sample.
-                let f01 = _mm256_permute4x64_pd::<0b01_01_00_00>(f);
-                let f23 = _mm256_permute4x64_pd::<0b11_11_10_10>(f);
-                let x01 = _mm256_cvtps_pd(_mm_loadu_ps(blocks[c][k..k + 2].as_ptr().cast()));
-                let x23 = _mm256_cvtps_pd(_mm_loadu_ps(blocks[c][k + 2..k + 4].as_ptr().cast()));
-                s01 = _mm256_add_pd(s01, _mm256_mul_pd(x01, f01));
-                s23 = _mm256_add_pd(s23, _mm256_mul_pd(x23, f23));
+                if scalar {
+                    let r = if mirrored {
+                        &rho[n - 4 - k..n - k]
+                    } else {
+                        &rho[k..k + 4]
+                    };
+                    accumulate_samples(
+                        &mut acc[k..k + 4],
+                        r,
+                        mirrored,
+                        &amp[k..k + 4],
+                        blocks.map(|b| &b[k..k + 4]),
+                        weights,
+                        profile,
+                    );
+                    continue;
+                }
+                let t = _mm256_mul_pd(rho4, inv_step);
+                // 0 ≤ max(t, 0) clamped to len − 2 < 2^22: the conversion to i32 is exact.
+                let pos = _mm256_cvttpd_epi32(_mm256_min_pd(_mm256_max_pd(t, zero), top));
+                let frac = _mm256_min_pd(_mm256_sub_pd(t, _mm256_cvtepi32_pd(pos)), one);
+                let at = [
+                    _mm_cvtsi128_si32(pos),
+                    _mm_extract_epi32::<1>(pos),
+                    _mm_extract_epi32::<2>(pos),
+                    _mm_extract_epi32::<3>(pos),
+                ];
+                // SAFETY: each position is in 0 ..= len − 2 (clamped above), so rows i and
+                // i + 1 are inside `values`.
+                let row = |j: usize, d: usize| {
+                    _mm256_loadu_pd(values.as_ptr().add(at[j] as usize + d).cast::<f64>())
+                };
+                let a = [row(0, 0), row(1, 0), row(2, 0), row(3, 0)];
+                let b = [row(0, 1), row(1, 1), row(2, 1), row(3, 1)];
+                let d = [0, 1, 2, 3].map(|j| _mm256_sub_pd(b[j], a[j]));
+                let (a, d) = (transpose_4x4_pd(a), transpose_4x4_pd(d));
+                let any_cut = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho4, first_cut)) != 0;
+                let mut s01 = _mm256_loadu_pd(acc[k..k + 2].as_ptr().cast());
+                let mut s23 = _mm256_loadu_pd(acc[k + 2..k + 4].as_ptr().cast());
+                for c in 0..CHUNK_LANES {
+                    let v = _mm256_add_pd(a[c], _mm256_mul_pd(frac, d[c]));
+                    let mut g = if any_cut {
+                        _mm256_andnot_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho4, cut[c]), v)
+                    } else {
+                        v
+                    };
+                    if let Some((_, _, beyond)) = &plateau {
+                        g = _mm256_mul_pd(g, beyond[c]);
+                    }
+                    let f = _mm256_mul_pd(_mm256_mul_pd(w[c], amp4), g);
+                    // [f0, f0, f1, f1] and [f2, f2, f3, f3]: one factor per complex sample.
+                    let f01 = _mm256_permute4x64_pd::<0b01_01_00_00>(f);
+                    let f23 = _mm256_permute4x64_pd::<0b11_11_10_10>(f);
+                    let x01 = _mm256_cvtps_pd(_mm_loadu_ps(blocks[c][k..k + 2].as_ptr().cast()));
+                    let x23 =
+                        _mm256_cvtps_pd(_mm_loadu_ps(blocks[c][k + 2..k + 4].as_ptr().cast()));
+                    s01 = _mm256_add_pd(s01, _mm256_mul_pd(x01, f01));
+                    s23 = _mm256_add_pd(s23, _mm256_mul_pd(x23, f23));
+                }
+                _mm256_storeu_pd(acc[k..k + 2].as_mut_ptr().cast(), s01);
+                _mm256_storeu_pd(acc[k + 2..k + 4].as_mut_ptr().cast(), s23);
             }
-            _mm256_storeu_pd(acc[k..k + 2].as_mut_ptr().cast(), s01);
-            _mm256_storeu_pd(acc[k + 2..k + 4].as_mut_ptr().cast(), s23);
+            let k = 4 * steps;
+            let r = if mirrored { &rho[..n - k] } else { &rho[k..] };
+            accumulate_samples(
+                &mut acc[k..],
+                r,
+                mirrored,
+                &amp[k..],
+                blocks.map(|b| &b[k..]),
+                weights,
+                profile,
+            );
         }
-        let k = 4 * steps;
-        accumulate_samples(
-            &mut acc[k..],
-            fx2,
-            &fy2[k..],
-            &amp[k..],
-            blocks.map(|b| &b[k..]),
-            weights,
-            profile,
-        );
     }
 }
 
@@ -424,7 +462,8 @@ unsafe fn accumulate_block_avx2<T: FftFloat>(
     accumulate_block_body(acc, columns, blocks, weights, profile);
 }
 
-/// The sample loop of [`accumulate_block_full`], column by column.
+/// The sample loop of [`accumulate_block_full`], column by column, each in its two halves
+/// ([`column_segments`]).
 #[inline(always)]
 fn accumulate_block_body<T: FftFloat>(
     acc: &mut [Complex64],
@@ -433,46 +472,49 @@ fn accumulate_block_body<T: FftFloat>(
     weights: [f64; CHUNK_LANES],
     profile: &ChunkProfile,
 ) {
-    for (j, &fx2) in columns.fx2.iter().enumerate() {
-        let col = columns.column(j, acc.len());
-        accumulate_samples(
-            &mut acc[col.clone()],
-            fx2,
-            &columns.fy2[..col.len()],
-            &columns.achromatic[col.clone()],
-            blocks.map(|b| &b[col.clone()]),
-            weights,
-            profile,
-        );
+    for (col, rho_half) in columns.columns(acc.len()) {
+        for (si, (seg, rho)) in column_segments(columns.rows, rho_half)
+            .into_iter()
+            .enumerate()
+        {
+            let (s0, s1) = (col.start + seg.start, col.start + seg.end);
+            accumulate_samples(
+                &mut acc[s0..s1],
+                rho,
+                si == 1,
+                &columns.achromatic[s0..s1],
+                blocks.map(|b| &b[s0..s1]),
+                weights,
+                profile,
+            );
+        }
     }
 }
 
-/// Samples of one column (fx² = `fx2`; fy², A and each band's spectrum per sample):
-/// `acc += Σ_c s_c · ((w_c · A) · g_c(ρ))`, bands in order, samples with A = 0 skipped.
+/// Consecutive samples of one column (ρ from `rho`, read backwards if `mirrored`; A and
+/// each band's spectrum per sample): `acc += Σ_c s_c · ((w_c · A) · g_c(ρ))`, bands in
+/// order, samples with A = 0 skipped.
 #[inline(always)]
 fn accumulate_samples<T: FftFloat>(
     acc: &mut [Complex64],
-    fx2: f64,
-    fy2: &[f64],
+    rho: &[f64],
+    mirrored: bool,
     achromatic: &[f32],
     blocks: [&[num_complex::Complex<T>]; CHUNK_LANES],
     weights: [f64; CHUNK_LANES],
     profile: &ChunkProfile,
 ) {
-    let n = acc.len().min(fy2.len()).min(achromatic.len());
+    let n = acc.len().min(rho.len()).min(achromatic.len());
     let blocks = blocks.map(|b| &b[..n]);
+    let rho = &rho[..n];
     let mut g = [0.0; CHUNK_LANES];
-    for (k, ((a, fy2), amp)) in acc[..n]
-        .iter_mut()
-        .zip(&fy2[..n])
-        .zip(&achromatic[..n])
-        .enumerate()
-    {
+    for (k, (a, amp)) in acc[..n].iter_mut().zip(&achromatic[..n]).enumerate() {
         let amp = *amp as f64;
         if amp == 0.0 {
             continue;
         }
-        profile.eval_all(radial_frequency(fx2, *fy2), &mut g);
+        let r = if mirrored { rho[n - 1 - k] } else { rho[k] };
+        profile.eval_all(r, &mut g);
         let mut sum = *a;
         for c in 0..CHUNK_LANES {
             let s = blocks[c][k];
@@ -540,103 +582,125 @@ mod tests {
             let rho_max = 1.3 * otf.cutoff_cy_per_rad(1.0);
             let profile = tables.chunk_profile(&otf, &[1.0, 1.25, 1.5, 1.7], rho_max);
             let mut rng = Xoshiro256PlusPlus::seed_from_u64(0x5eed ^ aerosol as u64);
-            // Five columns of 2503 rows (a tail of 3 per column): fx = 0 and fx = 2
-            // cycles/rad (the aerosol cores next to ρ = 0), then columns further out, so
-            // that the cuts fall at different rows.
-            let rows = 2503;
-            let fx2: Vec<f64> = [0.0, 2.0, 0.2 * rho_max, 0.5 * rho_max, 0.9 * rho_max]
-                .iter()
-                .map(|f| f * f)
-                .collect();
-            let fy2: Vec<f64> = (0..rows)
-                .map(|k| {
-                    let fy = match k % 5 {
+            // Five columns of an odd and of an even number of rows (tails of 3 and 2 in the
+            // halves): fx = 0 and fx = 2 cycles/rad (the aerosol cores next to ρ = 0),
+            // then columns further out, so that the cuts fall at different rows.
+            for rows in [2509, 2502] {
+                let half = rows / 2 + 1;
+                let fx = [0.0, 2.0, 0.2 * rho_max, 0.5 * rho_max, 0.9 * rho_max];
+                let fy: Vec<f64> = (0..half)
+                    .map(|k| match k % 5 {
                         // Past the grid's end and across every cut.
                         0 => 1.2 * rho_max * rng.random::<f64>(),
                         // The aerosol cores (ρ < a/λ, a few cycles/rad).
                         1 if k < 400 => 3.0 * rng.random::<f64>(),
                         // A smooth run, as along a column of the spectrum.
-                        _ => rho_max * (k as f64 / rows as f64),
-                    };
-                    fy * fy
-                })
-                .collect();
-            let n = rows * fx2.len();
-            let achromatic: Vec<f32> = (0..n)
-                .map(|k| match k % 97 {
-                    13 => 0.0,
-                    41 => -0.0,
-                    _ => (2.0 * rng.random::<f64>() - 0.5) as f32,
-                })
-                .collect();
-            let columns = ColumnBlock {
-                fx2: &fx2,
-                fy2: &fy2,
-                achromatic: &achromatic,
-            };
-            let spectra: Vec<Vec<Complex<f32>>> = (0..CHUNK_LANES)
-                .map(|_| {
-                    (0..n)
-                        .map(|_| {
-                            let re = (1e3 * (rng.random::<f64>() - 0.5)) as f32;
-                            Complex::new(re, (1e3 * (rng.random::<f64>() - 0.5)) as f32)
-                        })
-                        .collect()
-                })
-                .collect();
-            let blocks: [&[Complex<f32>]; CHUNK_LANES] =
-                std::array::from_fn(|c| spectra[c].as_slice());
-            let weights = [0.7, 1.3e-3, 2.5, 0.11];
-            let start: Vec<Complex64> = (0..n)
-                .map(|_| Complex64::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5))
-                .collect();
-            let mut fast = start.clone();
-            let mut slow = start.clone();
-            accumulate_block_full(&mut fast, &columns, blocks, weights, &profile);
-            accumulate_block_body(&mut slow, &columns, blocks, weights, &profile);
-            let mut changed = 0;
-            for (k, ((f, s), s0)) in fast.iter().zip(&slow).zip(&start).enumerate() {
-                assert!(
-                    f.re.to_bits() == s.re.to_bits() && f.im.to_bits() == s.im.to_bits(),
-                    "aerosol {aerosol}, diffraction {diffraction}, sample {k} (ρ {}, A {}): \
-                     {f:?} against {s:?}",
-                    radial_frequency(fx2[k / rows], fy2[k % rows]),
-                    achromatic[k]
-                );
-                changed += (s != s0) as usize;
+                        _ => rho_max * (k as f64 / half as f64),
+                    })
+                    .collect();
+                let rho: Vec<f64> = fx
+                    .iter()
+                    .flat_map(|x| fy.iter().map(move |y| x.hypot(*y)))
+                    .collect();
+                let n = rows * fx.len();
+                let achromatic: Vec<f32> = (0..n)
+                    .map(|k| match k % 97 {
+                        13 => 0.0,
+                        41 => -0.0,
+                        _ => (2.0 * rng.random::<f64>() - 0.5) as f32,
+                    })
+                    .collect();
+                let columns = ColumnBlock {
+                    rows,
+                    rho: &rho,
+                    achromatic: &achromatic,
+                };
+                let spectra: Vec<Vec<Complex<f32>>> = (0..CHUNK_LANES)
+                    .map(|_| {
+                        (0..n)
+                            .map(|_| {
+                                let re = (1e3 * (rng.random::<f64>() - 0.5)) as f32;
+                                Complex::new(re, (1e3 * (rng.random::<f64>() - 0.5)) as f32)
+                            })
+                            .collect()
+                    })
+                    .collect();
+                let blocks: [&[Complex<f32>]; CHUNK_LANES] =
+                    std::array::from_fn(|c| spectra[c].as_slice());
+                let weights = [0.7, 1.3e-3, 2.5, 0.11];
+                let start: Vec<Complex64> = (0..n)
+                    .map(|_| Complex64::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5))
+                    .collect();
+                let mut fast = start.clone();
+                let mut slow = start.clone();
+                accumulate_block_full(&mut fast, &columns, blocks, weights, &profile);
+                accumulate_block_body(&mut slow, &columns, blocks, weights, &profile);
+                // Independent of both loops: every sample gets ρ of its own row, the mirror
+                // of rows above rows/2 included, and A = 0 leaves it as it was.
+                let mut plain = start.clone();
+                let mut g = [0.0; CHUNK_LANES];
+                for (k, p) in plain.iter_mut().enumerate() {
+                    let (j, v) = (k / rows, k % rows);
+                    let amp = achromatic[k] as f64;
+                    if amp == 0.0 {
+                        continue;
+                    }
+                    profile.eval_all(fx[j].hypot(fy[v.min(rows - v)]), &mut g);
+                    for c in 0..CHUNK_LANES {
+                        let s = blocks[c][k];
+                        *p += Complex64::new(s.re as f64, s.im as f64) * (weights[c] * amp * g[c]);
+                    }
+                }
+                let mut changed = 0;
+                for (k, (((f, s), s0), p)) in
+                    fast.iter().zip(&slow).zip(&start).zip(&plain).enumerate()
+                {
+                    let what = format!(
+                        "aerosol {aerosol}, diffraction {diffraction}, rows {rows}, sample {k} \
+                         (A {}): {f:?} against {s:?}",
+                        achromatic[k]
+                    );
+                    assert!(
+                        f.re.to_bits() == s.re.to_bits() && f.im.to_bits() == s.im.to_bits(),
+                        "{what}"
+                    );
+                    assert!(
+                        f.re.to_bits() == p.re.to_bits() && f.im.to_bits() == p.im.to_bits(),
+                        "{what}, plain {p:?}"
+                    );
+                    changed += (s != s0) as usize;
+                }
+                // Most samples received something (the loops did work, the test can fail).
+                assert!(changed > n / 2, "only {changed} of {n} samples changed");
             }
-            // Most samples received something (the loops did work, the test can fail).
-            assert!(changed > n / 2, "only {changed} of {n} samples changed");
         }
     }
 
-    /// The grid's ρ is the radial frequency of every sample (against `hypot`, to 2 ulp),
+    /// The grid's ρ is the radial frequency of every sample (`hypot`, exactly, on both sides of rows/2),
     /// its A the achromatic product at the same sample in the transposed layout (to f32
     /// rounding), and `rho_max` the largest ρ of any sample, exactly.
     #[test]
     fn radial_grid_holds_rho_and_the_achromatic_product_of_every_sample() {
-        let grid = FrequencyGrid::real_fft(30, 45, 1.7e-5, 2.3e-5);
-        let (rows, cols) = (grid.fy.len(), grid.fx.len());
-        let achromatic = Array2::from_shape_fn((rows, cols), |(v, u)| {
-            (0.3 * v as f64 + 0.07 * u as f64).cos() * 0.9
-        });
-        let g = RadialGrid::new(&grid, &achromatic);
-        assert_eq!((g.rows(), g.cols()), (30, 23));
-        let mut largest: f64 = 0.0;
-        for u in 0..cols {
-            for v in 0..rows {
-                let want = grid.fx[u].hypot(grid.fy[v]);
-                let rho = g.rho(u, v);
-                assert!(
-                    (rho - want).abs() <= 2.0 * f64::EPSILON * want,
-                    "({u}, {v})"
-                );
-                largest = largest.max(rho);
-                let a = achromatic[[v, u]];
-                assert_eq!(g.achromatic(u, v), a as f32 as f64, "({u}, {v})");
-                assert!((g.achromatic(u, v) - a).abs() <= a.abs() * 6e-8);
+        for (ny, nx, cols) in [(30, 45, 23), (31, 44, 23)] {
+            let grid = FrequencyGrid::real_fft(ny, nx, 1.7e-5, 2.3e-5);
+            let rows = grid.fy.len();
+            let achromatic = Array2::from_shape_fn((rows, cols), |(v, u)| {
+                (0.3 * v as f64 + 0.07 * u as f64).cos() * 0.9
+            });
+            let g = RadialGrid::new(&grid, &achromatic);
+            assert_eq!((g.rows(), g.cols()), (ny, cols));
+            let mut largest: f64 = 0.0;
+            for u in 0..cols {
+                for v in 0..rows {
+                    let rho = g.rho(u, v);
+                    assert_eq!(rho, grid.fx[u].hypot(grid.fy[v]), "{ny}: ({u}, {v})");
+                    largest = largest.max(rho);
+                    let a = achromatic[[v, u]];
+                    assert_eq!(g.achromatic(u, v), a as f32 as f64, "({u}, {v})");
+                    assert!((g.achromatic(u, v) - a).abs() <= a.abs() * 6e-8);
+                }
             }
+            assert_eq!(g.rho_max(), largest);
         }
-        assert_eq!(g.rho_max(), largest);
     }
 }

@@ -24,7 +24,7 @@
 mod accumulate;
 pub mod fft;
 pub mod otf_table;
-pub use accumulate::{accumulate_chunk, radial_frequency, RadialGrid};
+pub use accumulate::{accumulate_chunk, RadialGrid};
 mod padding;
 mod r2c;
 

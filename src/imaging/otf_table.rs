@@ -15,9 +15,9 @@
 //! components of each band is then tabulated as a function of ρ alone on one common grid
 //! ([`RadialTables::chunk_profile`], a few thousand lookups per band), and the
 //! accumulation loop finds a frequency sample's grid position once and interpolates all
-//! bands of the chunk from two adjacent groups of values (ρ computed in the loop from the
-//! squared axis frequencies, `imaging::RadialGrid`). A band's jump to 0 at its aperture
-//! cutoff is applied exactly, not interpolated.
+//! bands of the chunk from two adjacent groups of values (ρ computed once per frame size,
+//! `imaging::RadialGrid`). A band's jump to 0 at its aperture cutoff is applied exactly,
+//! not interpolated.
 //!
 //! **Accuracy.** Every table is uniform with linear interpolation and is refined (its step
 //! halved) until the interpolation error measured at every interval midpoint against the
