@@ -77,7 +77,7 @@ pub trait FftFloat: FftNum + Copy {
         store_tile_transposed_scalar(tile, hc, nr, t0, pieces, 0);
     }
 
-    /// The untangling step of the real-to-complex row transform ([`super::r2c`]): pair i
+    /// The untangling step of the real-to-complex row transform (`imaging::r2c`): pair i
     /// is `left[i]` with `right[right.len() − 1 − i]` and twiddle `tw[i]` (all three the
     /// same length). The same bits whatever the implementation.
     fn untangle_r2c(tw: &[Complex<Self>], left: &mut [Complex<Self>], right: &mut [Complex<Self>]) {
