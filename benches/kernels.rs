@@ -11,7 +11,7 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use ndarray::Array2;
 use num_complex::{Complex, Complex64};
 
-use eoir::imaging::fft::{FftFloat, RealFft2};
+use eoir::imaging::fft::{FftFloat, RealFft2, SpectrumBuffer};
 use eoir::imaging::{accumulate_chunk, Imager, BANDS_PER_CHUNK, DEFAULT_WRAP_TOLERANCE};
 use eoir::scene::{CubeMeta, Geometry, RadianceUnits};
 use eoir::sensor::{Sensor, SensorConfig};
@@ -61,11 +61,13 @@ fn kernels(c: &mut Criterion) {
     // The fused column pass of one chunk (f32 row spectra, f64 accumulator).
     let fft = RealFft2::<f32>::new(ny, nx);
     let x = frame::<f32>(ny, nx);
-    let mut rowspecs = vec![vec![Complex::new(0.0f32, 0.0); ny * hc]; BANDS_PER_CHUNK];
+    let mut rowspecs: Vec<SpectrumBuffer<f32>> = (0..BANDS_PER_CHUNK)
+        .map(|_| SpectrumBuffer::new(ny * hc))
+        .collect();
     for rs in rowspecs.iter_mut() {
         fft.rows_forward_transposed(
             |r, row| row.copy_from_slice(x.row(r).as_slice().unwrap()),
-            rs,
+            rs.as_mut_slice(),
         );
     }
     let weights = vec![1.0; BANDS_PER_CHUNK];

@@ -20,7 +20,7 @@ use ndarray::Array2;
 use num_complex::{Complex, Complex64};
 use rayon::prelude::*;
 
-use eoir::imaging::fft::RealFft2;
+use eoir::imaging::fft::{RealFft2, SpectrumBuffer};
 use eoir::imaging::{accumulate_chunk, Imager, BANDS_PER_CHUNK, DEFAULT_WRAP_TOLERANCE};
 use eoir::sensor::Sensor;
 
@@ -54,8 +54,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             })
         })
         .collect();
-    let zero = Complex::new(0.0f32, 0.0);
-    let mut rowspecs = vec![vec![zero; ny * hc]; BANDS_PER_CHUNK];
+    let mut rowspecs: Vec<SpectrumBuffer<f32>> = (0..BANDS_PER_CHUNK)
+        .map(|_| SpectrumBuffer::new(ny * hc))
+        .collect();
     let mut acc = vec![Complex64::new(0.0, 0.0); ny * hc];
     let mut frame = Array2::from_shape_fn((ny, nx), |(r, c)| ((31 * r + 17 * c) % 101) as f32);
     let mut spec = Array2::<Complex<f32>>::zeros(fft.spectrum_shape());
@@ -78,7 +79,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             rowspecs
                 .par_iter_mut()
                 .zip(chunk.par_iter())
-                .for_each(|(rs, p)| im.rows_forward_band(&fft, p.view(), rs));
+                .for_each(|(rs, p)| im.rows_forward_band(&fft, p.view(), rs.as_mut_slice()));
             let t1 = Instant::now();
             let profile = im.chunk_profile(&wl[ci * BANDS_PER_CHUNK..(ci + 1) * BANDS_PER_CHUNK]);
             accumulate_chunk(

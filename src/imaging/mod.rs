@@ -44,7 +44,7 @@ use crate::scene::{CubeMeta, Geometry, RadianceUnits};
 use crate::sensor::{Component, FrequencyGrid, Sensor, SystemOtf};
 use crate::spectrum::Spectrum;
 
-use fft::{FftFloat, FftPrecision, RealFft2};
+use fft::{FftFloat, FftPrecision, RealFft2, SpectrumBuffer};
 use otf_table::{BandProfile, ChunkProfile, RadialTables, CHUNK_LANES};
 use padding::{FramePad, PadMap};
 
@@ -592,8 +592,7 @@ impl Imager {
             ..Default::default()
         };
         let active = self.weights.active_bands();
-        let zero = num_complex::Complex::new(T::zero(), T::zero());
-        let mut rowspecs: Vec<Vec<num_complex::Complex<T>>> = Vec::new();
+        let mut rowspecs: Vec<SpectrumBuffer<T>> = Vec::new();
         let chunks: Vec<&[usize]> = active.chunks(BANDS_PER_CHUNK).collect();
         let t0 = Instant::now();
         let mut next = match chunks.first() {
@@ -613,7 +612,7 @@ impl Imager {
                     chunk.len()
                 )));
             }
-            rowspecs.resize_with(chunk.len(), || vec![zero; ny * hc]);
+            rowspecs.resize_with(chunk.len(), || SpectrumBuffer::new(ny * hc));
             let (mut fft_s, mut otf_s) = (0.0, 0.0);
             let mut unphysical = false;
             let checking = pending.is_some();
@@ -638,7 +637,12 @@ impl Imager {
                                 .zip(planes.par_iter())
                                 .for_each(|(rs, plane)| {
                                     let check = checking.then_some(&bad);
-                                    self.rows_forward_band_checked(fft, plane.view(), rs, check)
+                                    self.rows_forward_band_checked(
+                                        fft,
+                                        plane.view(),
+                                        rs.as_mut_slice(),
+                                        check,
+                                    )
                                 })
                         },
                         || self.chunk_profile(&wavelengths),
