@@ -68,6 +68,7 @@ fn kernels(c: &mut Criterion) {
         fft.rows_forward_transposed(
             |r, row| row.copy_from_slice(x.row(r).as_slice().unwrap()),
             rs.as_mut_slice(),
+            im.row_stores(),
         );
     }
     let weights = vec![1.0; BANDS_PER_CHUNK];

@@ -26,11 +26,11 @@
 //!    accumulator while it is still in cache. No gather, no scatter; the same plans and
 //!    data, so the same values bit for bit. In f32 the transposing store moves four
 //!    columns at a time with AVX where the CPU has it ([`FftFloat::store_tile_transposed`];
-//!    a bit copy, so the same result on every CPU), with non-temporal stores into a
-//!    cache-line-aligned [`SpectrumBuffer`]: a chunk's row spectra (19 MiB at 1080² for 4
-//!    bands) are read back only after the whole chunk's row pass, so caching them on the
-//!    way out buys little, and a streaming store writes each 64-byte line without first
-//!    reading it from memory (no read-for-ownership).
+//!    a bit copy, so the same result on every CPU). When a chunk's row spectra are too
+//!    large to be read back from the cache (19 MB at 1080² for 4 bands, against a 32 MiB
+//!    shared L3) it uses non-temporal stores into a cache-line-aligned [`SpectrumBuffer`]
+//!    ([`RowStores::Streaming`]): each 64-byte line is written without first being read
+//!    from memory (no read-for-ownership).
 //!
 //! The gather and the scatter move [`TILE_ROWS`] rows at a time: each column of the block
 //! then receives 8 consecutive samples (64 B in f32, 128 B in f64: whole cache lines)
@@ -69,15 +69,18 @@ pub trait FftFloat: FftNum + Copy {
 
     /// Stores rows `0..nr` of `tile` (`[nr][hc]`, row-major) transposed: element u of row
     /// `dr` goes to `pieces[u][t0 + dr]` (the transposing store of
-    /// [`RealFft2::rows_forward_transposed`]). A pure copy: the same bits whatever the
-    /// implementation.
+    /// [`RealFft2::rows_forward_transposed`]), with `stores` as a hint (the f32 AVX store
+    /// streams aligned lines for [`RowStores::Streaming`]). A pure copy: the same bits
+    /// whatever the implementation.
     fn store_tile_transposed(
         tile: &[Complex<Self>],
         hc: usize,
         nr: usize,
         t0: usize,
         pieces: &mut [&mut [Complex<Self>]],
+        stores: RowStores,
     ) {
+        let _ = stores;
         store_tile_transposed_scalar(tile, hc, nr, t0, pieces, 0);
     }
 
@@ -146,8 +149,8 @@ pub(super) unsafe fn transpose_4x4_pd(
 /// [`FftFloat::store_tile_transposed`] of a whole f32 tile ([`TILE_ROWS`] = 8 rows) with
 /// AVX: each complex f32 moved as one 64-bit lane, four columns at a time (two 4 × 4
 /// transposes by unpack and 128-bit permute), each column's 8 samples stored as 64
-/// contiguous bytes, with non-temporal stores where they are 32-byte aligned; the columns
-/// left over (`hc` mod 4) by the scalar loop.
+/// contiguous bytes, with non-temporal stores if `streaming` where they are 32-byte
+/// aligned; the columns left over (`hc` mod 4) by the scalar loop.
 ///
 /// # Safety
 /// The CPU must support AVX (`is_x86_feature_detected!("avx")`).
@@ -158,6 +161,7 @@ unsafe fn store_tile8_transposed_avx(
     hc: usize,
     t0: usize,
     pieces: &mut [&mut [Complex<f32>]],
+    streaming: bool,
 ) {
     use std::arch::x86_64::*;
     const _: () = assert!(TILE_ROWS == 8);
@@ -171,7 +175,7 @@ unsafe fn store_tile8_transposed_avx(
         for j in 0..4 {
             // Bounds-checked: 8 samples of column u + j from row t0 on.
             let dst = pieces[u + j][t0..t0 + TILE_ROWS].as_mut_ptr().cast::<f64>();
-            if (dst as usize) % 32 == 0 {
+            if streaming && (dst as usize) % 32 == 0 {
                 // Aligned (a `SpectrumBuffer` whose columns are a multiple of 4 samples
                 // long): two streaming stores write the whole 64-byte line without reading
                 // it first. The caller fences before the spectra are read
@@ -216,13 +220,16 @@ impl FftFloat for f32 {
         nr: usize,
         t0: usize,
         pieces: &mut [&mut [Complex<Self>]],
+        stores: RowStores,
     ) {
         #[cfg(target_arch = "x86_64")]
         if nr == TILE_ROWS && std::arch::is_x86_feature_detected!("avx") {
+            let streaming = stores == RowStores::Streaming;
             // SAFETY: the CPU supports AVX (checked just above).
-            unsafe { store_tile8_transposed_avx(tile, hc, t0, pieces) };
+            unsafe { store_tile8_transposed_avx(tile, hc, t0, pieces, streaming) };
             return;
         }
+        let _ = stores;
         store_tile_transposed_scalar(tile, hc, nr, t0, pieces, 0);
     }
 }
@@ -275,6 +282,19 @@ impl FromStr for FftPrecision {
     }
 }
 
+/// How the row pass writes its spectra ([`RealFft2::rows_forward_transposed`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RowStores {
+    /// Ordinary stores: the spectra stay in cache for a reader that comes soon, while
+    /// they still fit there.
+    Cached,
+    /// Non-temporal stores where the destination is aligned (a [`SpectrumBuffer`]), f32
+    /// on CPUs with AVX: each 64-byte line is written without first being read from
+    /// memory (no read-for-ownership), and not kept in cache. For spectra too large to be
+    /// read back from the cache anyway.
+    Streaming,
+}
+
 /// Waits until this thread's non-temporal stores are globally visible (`sfence` on
 /// x86-64; nothing elsewhere, where none are issued).
 #[inline]
@@ -289,7 +309,8 @@ pub fn stream_fence() {
 /// A zeroed spectrum of `len` complex samples whose first sample is 64-byte aligned (one
 /// cache line), the row spectra of [`RealFft2::rows_forward_transposed`]: when a column's
 /// length is a multiple of 4 samples every 8-sample piece of a column is then a whole,
-/// aligned line, which the f32 row pass writes with non-temporal stores.
+/// aligned line, which the f32 row pass can write with non-temporal stores
+/// ([`RowStores::Streaming`]).
 pub struct SpectrumBuffer<T: FftFloat> {
     buf: Vec<Complex<T>>,
     /// Samples skipped at the start of `buf` to reach the alignment.
@@ -425,10 +446,14 @@ impl<T: FftFloat> RealFft2<T> {
     /// (in L1/L2) with the same plan and input as [`RealFft2::rows_forward`] (so the same
     /// values bit for bit, whatever the split) and then transposed into place: every
     /// column receives `TILE_ROWS` consecutive samples (64 B in f32, a whole cache line).
+    ///
+    /// `stores` says whether the spectra should stay in cache on the way out
+    /// ([`RowStores`]); either way the values are the same.
     pub fn rows_forward_transposed(
         &self,
         fill: impl Fn(usize, &mut [T]) + Sync,
         out_t: &mut [Complex<T>],
+        stores: RowStores,
     ) {
         let (rows, cols) = (self.rows, self.cols);
         let hc = cols / 2 + 1;
@@ -467,11 +492,13 @@ impl<T: FftFloat> RealFft2<T> {
                         fill(r0 + t0 + dr, row);
                         self.r2c.process(row, spec, sc);
                     }
-                    T::store_tile_transposed(tile, hc, nr, t0, &mut pieces);
+                    T::store_tile_transposed(tile, hc, nr, t0, &mut pieces, stores);
                 }
-                // The streaming stores are weakly ordered: complete them before the task
-                // ends (rayon's join then publishes them to the reading threads).
-                stream_fence();
+                if stores == RowStores::Streaming {
+                    // The streaming stores are weakly ordered: complete them before the
+                    // task ends (rayon's join then publishes them to the reading threads).
+                    stream_fence();
+                }
             },
         );
     }
@@ -816,10 +843,15 @@ mod tests {
 
     /// The transposed row pass and its in-place column transforms equal the standard
     /// row pass and column blocks bit for bit, for shapes with a partial last block, row
-    /// counts not multiple of the tile, and 1 or 3 threads (different row splits).
+    /// counts not multiple of the tile, 1 or 3 threads (different row splits), and cached
+    /// or streaming stores.
     #[test]
     fn transposed_row_pass_and_column_regions_equal_standard_ones() {
-        for threads in [1, 3] {
+        for (threads, stores) in [
+            (1, RowStores::Cached),
+            (1, RowStores::Streaming),
+            (3, RowStores::Streaming),
+        ] {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
                 .build()
@@ -845,7 +877,7 @@ mod tests {
                 // pieces are aligned: every piece for 8 or 40 rows, every other for 130).
                 let mut t = SpectrumBuffer::<f32>::new(rows * hc);
                 fft.rows_forward(fill, &mut std_spec);
-                pool.install(|| fft.rows_forward_transposed(fill, t.as_mut_slice()));
+                pool.install(|| fft.rows_forward_transposed(fill, t.as_mut_slice(), stores));
                 let t = t.as_mut_slice();
                 for v in 0..rows {
                     for u in 0..hc {
@@ -873,16 +905,18 @@ mod tests {
     /// The f32 tile store (vectorised where the CPU allows) moves every bit pattern,
     /// NaN payloads included, exactly where the portable loop does, for widths that are
     /// and are not multiples of its 4 columns, into an aligned [`SpectrumBuffer`]
-    /// (streaming stores) and into a buffer one sample off the alignment (plain stores).
+    /// (streaming stores when asked) and into a buffer one sample off the alignment (plain
+    /// stores).
     #[test]
     fn tile_store_moves_bits_as_the_portable_loop() {
-        for (hc, offset) in [
-            (1usize, 0usize),
-            (4, 0),
-            (6, 0),
-            (13, 0),
-            (541, 0),
-            (541, 1),
+        for (hc, offset, stores) in [
+            (1usize, 0usize, RowStores::Streaming),
+            (4, 0, RowStores::Streaming),
+            (6, 0, RowStores::Streaming),
+            (13, 0, RowStores::Streaming),
+            (541, 0, RowStores::Streaming),
+            (541, 0, RowStores::Cached),
+            (541, 1, RowStores::Streaming),
         ] {
             let rows = 24;
             let tile: Vec<Complex<f32>> = (0..TILE_ROWS * hc)
@@ -900,14 +934,18 @@ mod tests {
             let got = &mut buffer.as_mut_slice()[offset..offset + hc * rows];
             let mut want = vec![zero; hc * rows];
             let mut g: Vec<&mut [Complex<f32>]> = got.chunks_mut(rows).collect();
-            f32::store_tile_transposed(&tile, hc, TILE_ROWS, 8, &mut g);
+            f32::store_tile_transposed(&tile, hc, TILE_ROWS, 8, &mut g, stores);
             stream_fence();
             let mut w: Vec<&mut [Complex<f32>]> = want.chunks_mut(rows).collect();
             store_tile_transposed_scalar(&tile, hc, TILE_ROWS, 8, &mut w, 0);
             let bits = |v: &[Complex<f32>]| -> Vec<(u32, u32)> {
                 v.iter().map(|c| (c.re.to_bits(), c.im.to_bits())).collect()
             };
-            assert_eq!(bits(got), bits(&want), "hc = {hc}, offset {offset}");
+            assert_eq!(
+                bits(got),
+                bits(&want),
+                "hc = {hc}, offset {offset}, {stores:?}"
+            );
         }
     }
 
