@@ -78,9 +78,8 @@ pub trait FftFloat: FftNum + Copy {
         nr: usize,
         t0: usize,
         pieces: &mut [&mut [Complex<Self>]],
-        stores: RowStores,
+        _stores: RowStores,
     ) {
-        let _ = stores;
         store_tile_transposed_scalar(tile, hc, nr, t0, pieces, 0);
     }
 

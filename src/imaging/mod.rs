@@ -434,8 +434,8 @@ pub struct Imager {
     pad: FramePad,
     /// Chromatic components as 1-D tables, built once per run.
     tables: RadialTables,
-    /// The half-plane frequency samples as the accumulation reads them (squared axis
-    /// frequencies for ρ, the achromatic product per sample), in the accumulator's
+    /// The half-plane frequency samples as the accumulation reads them (ρ for half of
+    /// each column, the achromatic product per sample in f32), in the accumulator's
     /// transposed layout `[fx][fy]`: computed once per frame size.
     radial: RadialGrid,
     /// Largest ρ on the grid, cycles/rad.
