@@ -37,6 +37,20 @@ pub struct RadialGrid {
     rho: Vec<f64>,
     /// A per sample, `[u·rows + v]`.
     achromatic: Vec<f32>,
+    /// The largest ρ.
+    rho_max: f64,
+}
+
+/// ρ values stored per column of `rows` rows: rows `0 ..= rows/2` ([`RadialGrid`]).
+fn stored_rows(rows: usize) -> usize {
+    rows / 2 + 1
+}
+
+/// The stored row that holds row `v`'s ρ: v itself up to rows/2, its mirror `rows − v`
+/// above (ρ is even in fy, and row `rows − v`'s frequency is exactly minus row v's).
+#[inline(always)]
+fn stored_row(rows: usize, v: usize) -> usize {
+    v.min(rows - v)
 }
 
 impl RadialGrid {
@@ -52,7 +66,7 @@ impl RadialGrid {
             (rows, cols),
             "RadialGrid::new: the achromatic product's shape is not the grid's"
         );
-        let half = rows / 2 + 1;
+        let half = stored_rows(rows);
         let mut a = vec![0.0f32; rows * cols];
         a.par_chunks_mut(rows.max(1))
             .enumerate()
@@ -71,6 +85,7 @@ impl RadialGrid {
         };
         RadialGrid {
             rows,
+            rho_max: rho.iter().copied().fold(0.0, f64::max),
             rho,
             achromatic: a,
         }
@@ -86,15 +101,10 @@ impl RadialGrid {
         self.achromatic.len().checked_div(self.rows).unwrap_or(0)
     }
 
-    /// ρ values stored per column (rows `0 ..= rows/2`).
-    fn half(&self) -> usize {
-        self.rows / 2 + 1
-    }
-
     /// ρ (cycles/rad) at fx index `u`, fy index `v`.
     #[inline]
     pub fn rho(&self, u: usize, v: usize) -> f64 {
-        self.rho[u * self.half() + v.min(self.rows - v)]
+        self.rho[u * stored_rows(self.rows) + stored_row(self.rows, v)]
     }
 
     /// The achromatic product (as stored, f32) at fx index `u`, fy index `v`.
@@ -105,7 +115,7 @@ impl RadialGrid {
 
     /// The largest ρ on the grid, cycles/rad (0 for an empty grid).
     pub fn rho_max(&self) -> f64 {
-        self.rho.iter().copied().fold(0.0, f64::max)
+        self.rho_max
     }
 }
 
@@ -148,7 +158,7 @@ pub fn accumulate_chunk<T: FftFloat, R: AsRef<[num_complex::Complex<T>]>>(
         }
     }
     let zero = num_complex::Complex::new(T::zero(), T::zero());
-    let half = grid.half();
+    let half = stored_rows(rows);
     acc_t
         .par_chunks_mut(block)
         .zip(grid.achromatic.par_chunks(block))
@@ -188,7 +198,7 @@ pub fn accumulate_chunk<T: FftFloat, R: AsRef<[num_complex::Complex<T>]>>(
                         if amp == 0.0 {
                             continue;
                         }
-                        profile.eval_all(rho[j * half + v.min(rows - v)], &mut g);
+                        profile.eval_all(columns.rho(j, v), &mut g);
                         let mut sum = *a;
                         for ((blk, w), gc) in blocks.iter().zip(weights).zip(&g) {
                             let s = blk[j * rows + v];
@@ -212,17 +222,48 @@ struct ColumnBlock<'a> {
 }
 
 impl ColumnBlock<'_> {
-    /// The columns of the block: per column, its samples (`j·rows ..`, clipped to a block
-    /// of `len` samples and to the block's A) and its stored half of ρ.
-    fn columns(&self, len: usize) -> impl Iterator<Item = (std::ops::Range<usize>, &[f64])> {
-        let (rows, half) = (self.rows, self.rows / 2 + 1);
+    /// ρ of row `v` of the block's column `j`.
+    #[inline]
+    fn rho(&self, j: usize, v: usize) -> f64 {
+        self.rho[j * stored_rows(self.rows) + stored_row(self.rows, v)]
+    }
+
+    /// The halves of the block's whole columns (within its first `len` samples), each with
+    /// its ρ as one slice: rows `0 ..= rows/2` read the stored half in order, the rows
+    /// above read `rho[1 ..= rows − rows/2 − 1]` of it backwards (row v's value is stored
+    /// at `rows − v`), so every sample loop reads ρ in order or reversed.
+    fn segments(&self, len: usize) -> impl Iterator<Item = Segment<'_>> {
+        let (rows, half) = (self.rows, stored_rows(self.rows));
+        let upper = rows.saturating_sub(half);
         let len = len.min(self.achromatic.len());
         self.rho
             .chunks_exact(half)
             .enumerate()
-            .map(move |(j, rho)| ((j * rows).min(len)..((j + 1) * rows).min(len), rho))
-            .filter(move |(col, _)| col.len() == rows)
+            .filter(move |(j, _)| (j + 1) * rows <= len)
+            .flat_map(move |(j, rho)| {
+                let start = j * rows;
+                [
+                    Segment {
+                        samples: start..start + half,
+                        rho,
+                        mirrored: false,
+                    },
+                    Segment {
+                        samples: start + half..start + rows,
+                        rho: &rho[1..1 + upper],
+                        mirrored: true,
+                    },
+                ]
+            })
     }
+}
+
+/// Half of a column ([`ColumnBlock::segments`]): its samples in the block, and their ρ,
+/// read backwards if `mirrored`.
+struct Segment<'a> {
+    samples: std::ops::Range<usize>,
+    rho: &'a [f64],
+    mirrored: bool,
 }
 
 /// [`accumulate_chunk`]'s sample loop for a full chunk ([`CHUNK_LANES`] bands): the same
@@ -256,17 +297,6 @@ fn accumulate_block_full<T: FftFloat>(
         return;
     }
     accumulate_block_body(acc, columns, blocks, weights, profile);
-}
-
-/// One column of a block split where its ρ is read: rows `0 ..= rows/2` in order from the
-/// stored half (`rho[..h]`, `Forward`), the rows above from the same half mirrored (row
-/// `rows − v`: `rho[1 ..= rows − h]` read backwards, `Mirrored`), so that every sample
-/// loop only ever reads ρ as one slice, in order or reversed.
-#[inline(always)]
-fn column_segments(rows: usize, rho: &[f64]) -> [(std::ops::Range<usize>, &[f64]); 2] {
-    let h = (rows / 2 + 1).min(rows).min(rho.len());
-    let upper = (rows - h).min(rho.len().saturating_sub(1));
-    [(0..h, &rho[..h]), (h..h + upper, &rho[1..1 + upper])]
 }
 
 /// [`accumulate_block_body`] for f32 spectra, four frequency samples (of one column) per
@@ -336,113 +366,110 @@ unsafe fn accumulate_block_f32_avx2(
     let past_from = _mm256_set1_pd(lanes.plateau.map_or(f64::INFINITY, |p| p.3));
     // Below the smallest cut no lane is cut: the per-band cut masks are skipped.
     let first_cut = _mm256_set1_pd(lanes.cut.iter().copied().fold(f64::INFINITY, f64::min));
-    for (col, rho_half) in columns.columns(acc.len()) {
-        for (si, (seg, rho)) in column_segments(columns.rows, rho_half)
-            .into_iter()
-            .enumerate()
-        {
-            let mirrored = si == 1;
-            let n = seg.len();
-            let (s0, s1) = (col.start + seg.start, col.start + seg.end);
-            let acc = &mut acc[s0..s1];
-            let amp = &columns.achromatic[s0..s1];
-            let blocks = blocks.map(|b| &b[s0..s1]);
-            let steps = n / 4;
-            for q in 0..steps {
-                let k = 4 * q;
-                // Samples k .. k + 4 read ρ at k .. k + 4, or mirrored at
-                // n − 1 − k down to n − 4 − k.
-                let rho4 = if mirrored {
-                    let r = _mm256_loadu_pd(rho[n - 4 - k..n - k].as_ptr());
-                    _mm256_permute4x64_pd::<0b00_01_10_11>(r)
-                } else {
-                    _mm256_loadu_pd(rho[k..k + 4].as_ptr())
-                };
-                let amp4 = _mm256_cvtps_pd(_mm_loadu_ps(amp[k..k + 4].as_ptr()));
-                let mut scalar = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_EQ_OQ>(amp4, zero)) != 0;
-                let surely_past = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho4, past_from));
-                if let (Some((sc, end, _)), false) = (&plateau, surely_past == 0b1111) {
-                    let mut past = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(rho4, sc[0]), end[0]);
-                    for c in 1..CHUNK_LANES {
-                        let p = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(rho4, sc[c]), end[c]);
-                        past = _mm256_and_pd(past, p);
-                    }
-                    scalar |= _mm256_movemask_pd(past) != 0b1111;
+    for Segment {
+        samples,
+        rho,
+        mirrored,
+    } in columns.segments(acc.len())
+    {
+        let n = samples.len();
+        let acc = &mut acc[samples.clone()];
+        let amp = &columns.achromatic[samples.clone()];
+        let blocks = blocks.map(|b| &b[samples.clone()]);
+        let steps = n / 4;
+        for q in 0..steps {
+            let k = 4 * q;
+            // Samples k .. k + 4 read ρ at k .. k + 4, or mirrored at
+            // n − 1 − k down to n − 4 − k.
+            let rho4 = if mirrored {
+                let r = _mm256_loadu_pd(rho[n - 4 - k..n - k].as_ptr());
+                _mm256_permute4x64_pd::<0b00_01_10_11>(r)
+            } else {
+                _mm256_loadu_pd(rho[k..k + 4].as_ptr())
+            };
+            let amp4 = _mm256_cvtps_pd(_mm_loadu_ps(amp[k..k + 4].as_ptr()));
+            let mut scalar = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_EQ_OQ>(amp4, zero)) != 0;
+            let surely_past = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho4, past_from));
+            if let (Some((sc, end, _)), false) = (&plateau, surely_past == 0b1111) {
+                let mut past = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(rho4, sc[0]), end[0]);
+                for c in 1..CHUNK_LANES {
+                    let p = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(rho4, sc[c]), end[c]);
+                    past = _mm256_and_pd(past, p);
                 }
-                if scalar {
-                    let r = if mirrored {
-                        &rho[n - 4 - k..n - k]
-                    } else {
-                        &rho[k..k + 4]
-                    };
-                    accumulate_samples(
-                        &mut acc[k..k + 4],
-                        r,
-                        mirrored,
-                        &amp[k..k + 4],
-                        blocks.map(|b| &b[k..k + 4]),
-                        weights,
-                        profile,
-                    );
-                    continue;
-                }
-                let t = _mm256_mul_pd(rho4, inv_step);
-                // 0 ≤ max(t, 0) clamped to len − 2 < 2^22: the conversion to i32 is exact.
-                let pos = _mm256_cvttpd_epi32(_mm256_min_pd(_mm256_max_pd(t, zero), top));
-                let frac = _mm256_min_pd(_mm256_sub_pd(t, _mm256_cvtepi32_pd(pos)), one);
-                let at = [
-                    _mm_cvtsi128_si32(pos),
-                    _mm_extract_epi32::<1>(pos),
-                    _mm_extract_epi32::<2>(pos),
-                    _mm_extract_epi32::<3>(pos),
-                ];
-                // SAFETY: each position is in 0 ..= len − 2 (clamped above), so rows i and
-                // i + 1 are inside `values`.
-                let row = |j: usize, d: usize| {
-                    _mm256_loadu_pd(values.as_ptr().add(at[j] as usize + d).cast::<f64>())
-                };
-                let a = [row(0, 0), row(1, 0), row(2, 0), row(3, 0)];
-                let b = [row(0, 1), row(1, 1), row(2, 1), row(3, 1)];
-                let d = [0, 1, 2, 3].map(|j| _mm256_sub_pd(b[j], a[j]));
-                let (a, d) = (transpose_4x4_pd(a), transpose_4x4_pd(d));
-                let any_cut = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho4, first_cut)) != 0;
-                let mut s01 = _mm256_loadu_pd(acc[k..k + 2].as_ptr().cast());
-                let mut s23 = _mm256_loadu_pd(acc[k + 2..k + 4].as_ptr().cast());
-                for c in 0..CHUNK_LANES {
-                    let v = _mm256_add_pd(a[c], _mm256_mul_pd(frac, d[c]));
-                    let mut g = if any_cut {
-                        _mm256_andnot_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho4, cut[c]), v)
-                    } else {
-                        v
-                    };
-                    if let Some((_, _, beyond)) = &plateau {
-                        g = _mm256_mul_pd(g, beyond[c]);
-                    }
-                    let f = _mm256_mul_pd(_mm256_mul_pd(w[c], amp4), g);
-                    // [f0, f0, f1, f1] and [f2, f2, f3, f3]: one factor per complex sample.
-                    let f01 = _mm256_permute4x64_pd::<0b01_01_00_00>(f);
-                    let f23 = _mm256_permute4x64_pd::<0b11_11_10_10>(f);
-                    let x01 = _mm256_cvtps_pd(_mm_loadu_ps(blocks[c][k..k + 2].as_ptr().cast()));
-                    let x23 =
-                        _mm256_cvtps_pd(_mm_loadu_ps(blocks[c][k + 2..k + 4].as_ptr().cast()));
-                    s01 = _mm256_add_pd(s01, _mm256_mul_pd(x01, f01));
-                    s23 = _mm256_add_pd(s23, _mm256_mul_pd(x23, f23));
-                }
-                _mm256_storeu_pd(acc[k..k + 2].as_mut_ptr().cast(), s01);
-                _mm256_storeu_pd(acc[k + 2..k + 4].as_mut_ptr().cast(), s23);
+                scalar |= _mm256_movemask_pd(past) != 0b1111;
             }
-            let k = 4 * steps;
-            let r = if mirrored { &rho[..n - k] } else { &rho[k..] };
-            accumulate_samples(
-                &mut acc[k..],
-                r,
-                mirrored,
-                &amp[k..],
-                blocks.map(|b| &b[k..]),
-                weights,
-                profile,
-            );
+            if scalar {
+                let r = if mirrored {
+                    &rho[n - 4 - k..n - k]
+                } else {
+                    &rho[k..k + 4]
+                };
+                accumulate_samples(
+                    &mut acc[k..k + 4],
+                    r,
+                    mirrored,
+                    &amp[k..k + 4],
+                    blocks.map(|b| &b[k..k + 4]),
+                    weights,
+                    profile,
+                );
+                continue;
+            }
+            let t = _mm256_mul_pd(rho4, inv_step);
+            // 0 ≤ max(t, 0) clamped to len − 2 < 2^22: the conversion to i32 is exact.
+            let pos = _mm256_cvttpd_epi32(_mm256_min_pd(_mm256_max_pd(t, zero), top));
+            let frac = _mm256_min_pd(_mm256_sub_pd(t, _mm256_cvtepi32_pd(pos)), one);
+            let at = [
+                _mm_cvtsi128_si32(pos),
+                _mm_extract_epi32::<1>(pos),
+                _mm_extract_epi32::<2>(pos),
+                _mm_extract_epi32::<3>(pos),
+            ];
+            // SAFETY: each position is in 0 ..= len − 2 (clamped above), so rows i and
+            // i + 1 are inside `values`.
+            let row = |j: usize, d: usize| {
+                _mm256_loadu_pd(values.as_ptr().add(at[j] as usize + d).cast::<f64>())
+            };
+            let a = [row(0, 0), row(1, 0), row(2, 0), row(3, 0)];
+            let b = [row(0, 1), row(1, 1), row(2, 1), row(3, 1)];
+            let d = [0, 1, 2, 3].map(|j| _mm256_sub_pd(b[j], a[j]));
+            let (a, d) = (transpose_4x4_pd(a), transpose_4x4_pd(d));
+            let any_cut = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho4, first_cut)) != 0;
+            let mut s01 = _mm256_loadu_pd(acc[k..k + 2].as_ptr().cast());
+            let mut s23 = _mm256_loadu_pd(acc[k + 2..k + 4].as_ptr().cast());
+            for c in 0..CHUNK_LANES {
+                let v = _mm256_add_pd(a[c], _mm256_mul_pd(frac, d[c]));
+                let mut g = if any_cut {
+                    _mm256_andnot_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho4, cut[c]), v)
+                } else {
+                    v
+                };
+                if let Some((_, _, beyond)) = &plateau {
+                    g = _mm256_mul_pd(g, beyond[c]);
+                }
+                let f = _mm256_mul_pd(_mm256_mul_pd(w[c], amp4), g);
+                // [f0, f0, f1, f1] and [f2, f2, f3, f3]: one factor per complex sample.
+                let f01 = _mm256_permute4x64_pd::<0b01_01_00_00>(f);
+                let f23 = _mm256_permute4x64_pd::<0b11_11_10_10>(f);
+                let x01 = _mm256_cvtps_pd(_mm_loadu_ps(blocks[c][k..k + 2].as_ptr().cast()));
+                let x23 = _mm256_cvtps_pd(_mm_loadu_ps(blocks[c][k + 2..k + 4].as_ptr().cast()));
+                s01 = _mm256_add_pd(s01, _mm256_mul_pd(x01, f01));
+                s23 = _mm256_add_pd(s23, _mm256_mul_pd(x23, f23));
+            }
+            _mm256_storeu_pd(acc[k..k + 2].as_mut_ptr().cast(), s01);
+            _mm256_storeu_pd(acc[k + 2..k + 4].as_mut_ptr().cast(), s23);
         }
+        let k = 4 * steps;
+        let r = if mirrored { &rho[..n - k] } else { &rho[k..] };
+        accumulate_samples(
+            &mut acc[k..],
+            r,
+            mirrored,
+            &amp[k..],
+            blocks.map(|b| &b[k..]),
+            weights,
+            profile,
+        );
     }
 }
 
@@ -463,7 +490,7 @@ unsafe fn accumulate_block_avx2<T: FftFloat>(
 }
 
 /// The sample loop of [`accumulate_block_full`], column by column, each in its two halves
-/// ([`column_segments`]).
+/// ([`ColumnBlock::segments`]).
 #[inline(always)]
 fn accumulate_block_body<T: FftFloat>(
     acc: &mut [Complex64],
@@ -472,22 +499,17 @@ fn accumulate_block_body<T: FftFloat>(
     weights: [f64; CHUNK_LANES],
     profile: &ChunkProfile,
 ) {
-    for (col, rho_half) in columns.columns(acc.len()) {
-        for (si, (seg, rho)) in column_segments(columns.rows, rho_half)
-            .into_iter()
-            .enumerate()
-        {
-            let (s0, s1) = (col.start + seg.start, col.start + seg.end);
-            accumulate_samples(
-                &mut acc[s0..s1],
-                rho,
-                si == 1,
-                &columns.achromatic[s0..s1],
-                blocks.map(|b| &b[s0..s1]),
-                weights,
-                profile,
-            );
-        }
+    for seg in columns.segments(acc.len()) {
+        let s = seg.samples;
+        accumulate_samples(
+            &mut acc[s.clone()],
+            seg.rho,
+            seg.mirrored,
+            &columns.achromatic[s.clone()],
+            blocks.map(|b| &b[s.clone()]),
+            weights,
+            profile,
+        );
     }
 }
 

@@ -438,8 +438,6 @@ pub struct Imager {
     /// each column, the achromatic product per sample in f32), in the accumulator's
     /// transposed layout `[fx][fy]`: computed once per frame size.
     radial: RadialGrid,
-    /// Largest ρ on the grid, cycles/rad.
-    rho_max: f64,
 }
 
 /// A chunk's row spectra larger than this are written with non-temporal stores
@@ -510,7 +508,6 @@ impl Imager {
         let achromatic = otf.on_grid(&grid).into_achromatic();
         let radial = RadialGrid::new(&grid, &achromatic);
         drop(achromatic);
-        let rho_max = radial.rho_max();
         let (lo, hi) = active
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), l| {
@@ -530,7 +527,6 @@ impl Imager {
             pad,
             tables,
             radial,
-            rho_max,
         })
     }
 
@@ -805,7 +801,7 @@ impl Imager {
     /// [`otf_table::TABLE_TOLERANCE`] of direct evaluation.
     pub fn band_profile(&self, wavelength_um: f64) -> BandProfile {
         self.tables
-            .band_profile(&self.otf, wavelength_um, self.rho_max)
+            .band_profile(&self.otf, wavelength_um, self.radial.rho_max())
     }
 
     /// The chromatic transfer functions of up to [`otf_table::CHUNK_LANES`] bands on one
@@ -813,7 +809,7 @@ impl Imager {
     /// ([`RadialTables::chunk_profile`]).
     pub fn chunk_profile(&self, wavelengths_um: &[f64]) -> ChunkProfile {
         self.tables
-            .chunk_profile(&self.otf, wavelengths_um, self.rho_max)
+            .chunk_profile(&self.otf, wavelengths_um, self.radial.rho_max())
     }
 
     /// The OTF the accumulation applies at `wavelength_um` on the half-plane frequency grid
