@@ -339,7 +339,7 @@ unsafe fn accumulate_block_f32_avx2(
     weights: [f64; CHUNK_LANES],
     profile: &ChunkProfile,
 ) {
-    use super::fft::transpose_4x4_pd;
+    use super::transpose::transpose_4x4_pd;
     use std::arch::x86_64::*;
     const _: () = assert!(CHUNK_LANES == 4);
     let lanes = profile.lanes();

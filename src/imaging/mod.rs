@@ -27,6 +27,7 @@ pub mod otf_table;
 pub use accumulate::{accumulate_chunk, RadialGrid};
 mod padding;
 mod r2c;
+mod transpose;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -712,10 +713,7 @@ impl Imager {
         }
         drop(rowspecs);
         let t0 = Instant::now();
-        let mut acc = Array2::<Complex64>::zeros((ny, hc));
-        fft::untranspose(&acc_t, acc.as_slice_mut().expect("standard layout"), ny, hc);
-        drop(acc_t);
-        let e = self.detector_image(&mut acc);
+        let e = self.detector_image_transposed(&mut acc_t);
         stats.inverse_s = t0.elapsed().as_secs_f64();
         Ok((e, stats))
     }
@@ -765,15 +763,38 @@ impl Imager {
     }
 
     /// The detector image of an accumulated half-plane spectrum (`[fy, fx]`, the padded
-    /// frame's [`Imager::frequency_grid`]; used as scratch): one inverse transform and
-    /// point sampling for an integer detector/scene ratio, trigonometric interpolation
-    /// otherwise (see [`Sampling`]), then cos⁴ if the optics ask for it.
-    pub fn detector_image(&self, acc: &mut Array2<Complex64>) -> Array2<f64> {
-        let mut scratch = Vec::new();
+    /// frame's [`Imager::frequency_grid`]): one inverse transform and point sampling for an
+    /// integer detector/scene ratio, trigonometric interpolation otherwise (see
+    /// [`Sampling`]), then cos⁴ if the optics ask for it. The same values as
+    /// [`Imager::detector_image_transposed`] of its transpose, which the engine uses.
+    pub fn detector_image(&self, acc: &Array2<Complex64>) -> Array2<f64> {
+        let (ny, hc) = acc.dim();
+        let mut acc_t = vec![Complex64::new(0.0, 0.0); ny * hc];
+        // `untranspose` with the roles of the axes swapped is the transpose.
+        fft::untranspose(
+            acc.as_standard_layout()
+                .as_slice()
+                .expect("standard layout"),
+            &mut acc_t,
+            hc,
+            ny,
+        );
+        self.detector_image_transposed(&mut acc_t)
+    }
+
+    /// [`Imager::detector_image`] of the spectrum as the engine accumulates it, transposed
+    /// (`acc_t[u·rows + v]`, `[fx][fy]`; used as scratch). For an integer ratio the inverse
+    /// runs on the transposed layout and only the sampled rows are row-transformed
+    /// ([`RealFft2::inverse_transposed_rows`]): no frame-sized transpose and no padded
+    /// image.
+    pub fn detector_image_transposed(&self, acc_t: &mut [Complex64]) -> Array2<f64> {
         let mut e = if self.sampling.integer {
-            self.sample_integer(acc, &mut scratch)
+            self.sample_integer(acc_t)
         } else {
-            self.sample_trigonometric(acc)
+            let (ny, hc) = self.fft.spectrum_shape();
+            let mut acc = Array2::<Complex64>::zeros((ny, hc));
+            fft::untranspose(acc_t, acc.as_slice_mut().expect("standard layout"), ny, hc);
+            self.sample_trigonometric(&acc)
         };
         if self.sensor.optics.cos4 {
             self.apply_cos4(&mut e);
@@ -842,12 +863,9 @@ impl Imager {
 
     /// Integer ratio: shift by the fractional part of the first pixel position with a
     /// phase ramp (exact for the band-limited image; on an even axis the Nyquist bin takes
-    /// the average of the ± ramps, cos(πs)), one inverse FFT, point sampling.
-    fn sample_integer(
-        &self,
-        acc: &mut Array2<Complex64>,
-        scratch: &mut Vec<Complex64>,
-    ) -> Array2<f64> {
+    /// the average of the ± ramps, cos(πs)), one inverse FFT evaluated at the sampled rows
+    /// only, point sampling. `acc_t` is the transposed spectrum (used as scratch).
+    fn sample_integer(&self, acc_t: &mut [Complex64]) -> Array2<f64> {
         let (sy, sx) = (&self.sampling.y, &self.sampling.x);
         let (ny, nx) = (sy.padded_len, sx.padded_len);
         let start_y = sy.position(0);
@@ -866,26 +884,24 @@ impl Imager {
                     Complex64::from_polar(1.0, 2.0 * std::f64::consts::PI * kk * s / n as f64)
                 }
             };
-            let rx: Vec<Complex64> = (0..nx / 2 + 1).map(|k| ramp(nx, fx, k, false)).collect();
-            acc.axis_iter_mut(Axis(0))
-                .into_par_iter()
-                .enumerate()
-                .for_each(|(v, mut row)| {
-                    let r = ramp(ny, fy, v, true);
-                    for (a, x) in row.iter_mut().zip(&rx) {
-                        *a *= r * x;
-                    }
-                });
+            let ry: Vec<Complex64> = (0..ny).map(|v| ramp(ny, fy, v, true)).collect();
+            acc_t.par_chunks_mut(ny).enumerate().for_each(|(u, col)| {
+                let x = ramp(nx, fx, u, false);
+                for (a, r) in col.iter_mut().zip(&ry) {
+                    *a *= r * x;
+                }
+            });
         }
-        let mut img = Array2::<f64>::zeros((ny, nx));
-        self.fft.inverse(acc, &mut img, scratch);
         let (y0, x0) = (start_y.floor() as usize, start_x.floor() as usize);
         let (ky, kx) = (
             sy.integer_ratio().unwrap_or(1),
             sx.integer_ratio().unwrap_or(1),
         );
+        let wanted: Vec<usize> = (0..sy.detector_len).map(|i| y0 + i * ky).collect();
+        let mut img = Array2::<f64>::zeros((wanted.len(), nx));
+        self.fft.inverse_transposed_rows(acc_t, &wanted, &mut img);
         Array2::from_shape_fn((sy.detector_len, sx.detector_len), |(i, j)| {
-            img[[y0 + i * ky, x0 + j * kx]]
+            img[[i, x0 + j * kx]]
         })
     }
 
