@@ -60,19 +60,26 @@ impl RadialGrid {
     /// # Panics
     /// If `achromatic`'s shape is not `[grid.fy.len(), grid.fx.len()]` (a caller error).
     pub fn new(grid: &FrequencyGrid, achromatic: &Array2<f64>) -> Self {
-        let (rows, cols) = (grid.fy.len(), grid.fx.len());
         assert_eq!(
             achromatic.dim(),
-            (rows, cols),
+            (grid.fy.len(), grid.fx.len()),
             "RadialGrid::new: the achromatic product's shape is not the grid's"
         );
+        Self::from_fn(grid, |u, v| achromatic[[v, u]])
+    }
+
+    /// The samples of `grid` with the achromatic product `achromatic(u, v)` at fx index u,
+    /// fy index v (for example [`crate::sensor::AchromaticSampler::at`]), evaluated once
+    /// per sample straight into the stored layout (no frame-sized f64 array).
+    pub fn from_fn(grid: &FrequencyGrid, achromatic: impl Fn(usize, usize) -> f64 + Sync) -> Self {
+        let (rows, cols) = (grid.fy.len(), grid.fx.len());
         let half = stored_rows(rows);
         let mut a = vec![0.0f32; rows * cols];
         a.par_chunks_mut(rows.max(1))
             .enumerate()
             .for_each(|(u, col)| {
                 for (v, x) in col.iter_mut().enumerate() {
-                    *x = achromatic[[v, u]] as f32;
+                    *x = achromatic(u, v) as f32;
                 }
             });
         let rho = if rows == 0 {

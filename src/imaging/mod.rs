@@ -506,9 +506,9 @@ impl Imager {
             y: PadMap::new(meta.rows, sampling.y.pad_before, sampling.y.padded_len),
             x: PadMap::new(meta.cols, sampling.x.pad_before, sampling.x.padded_len),
         };
-        let achromatic = otf.on_grid(&grid).into_achromatic();
-        let radial = RadialGrid::new(&grid, &achromatic);
-        drop(achromatic);
+        let sampler = otf.achromatic_sampler(&grid);
+        let radial = RadialGrid::from_fn(&grid, |u, v| sampler.at(u, v));
+        drop(sampler);
         let (lo, hi) = active
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), l| {

@@ -13,5 +13,5 @@ pub mod presets;
 pub mod resolved;
 
 pub use config::{apply_override, SensorConfig, SpectrumConfig};
-pub use otf::{Component, FrequencyGrid, GridOtf, SystemOtf};
+pub use otf::{AchromaticSampler, Component, FrequencyGrid, GridOtf, SystemOtf};
 pub use resolved::Sensor;

@@ -371,56 +371,57 @@ impl SystemOtf {
         }
     }
 
-    /// Multiplies every sample of `acc` (`[fy, fx]` of `grid`) by achromatic component `c`
-    /// (see [`SystemOtf::on_grid`]). Rows in parallel.
-    fn multiply_on_grid(&self, c: Component, grid: &FrequencyGrid, acc: &mut Array2<f64>) {
+    /// The wavelength-independent product on the samples of `grid`, one sample at a time
+    /// ([`AchromaticSampler::at`]): the separable components' row and column terms are
+    /// computed here, once (detector footprint: a product of two sincs; linear motion: the
+    /// sinc of a sum; jitter and Gaussian: the exponential of a sum), with the same
+    /// operations as their pointwise functions, so every value equals the pointwise
+    /// product bit for bit.
+    pub fn achromatic_sampler<'a>(&'a self, grid: &'a FrequencyGrid) -> AchromaticSampler<'a> {
         let (fx, fy) = (&grid.fx, &grid.fy);
-        let mut rows = |each: &(dyn Fn(f64, f64) -> f64 + Sync), cols: &[f64], ys: &[f64]| {
-            Zip::from(acc.rows_mut())
-                .and(ys)
-                .par_for_each(|mut row, b| {
-                    for (v, a) in row.iter_mut().zip(cols) {
-                        *v *= each(*a, *b);
-                    }
-                });
-        };
-        match c {
-            Component::Detector => {
-                // optics::detector_footprint: sinc(fx·wx/F) · sinc(fy·wy/F).
-                let fl = self.focal_length_m;
-                let cx: Vec<f64> = fx
-                    .iter()
-                    .map(|f| optics::sinc(f * self.active_width_x_m / fl))
-                    .collect();
-                let cy: Vec<f64> = fy
-                    .iter()
-                    .map(|f| optics::sinc(f * self.active_width_y_m / fl))
-                    .collect();
-                rows(&|a, b| a * b, &cx, &cy);
-            }
-            Component::Motion => {
-                // motion::linear_motion: sinc((fx cos θ + fy sin θ) · d).
-                let (sin_t, cos_t) = self.smear_direction_rad.sin_cos();
-                let d = self.smear_rad;
-                let cx: Vec<f64> = fx.iter().map(|f| f * cos_t).collect();
-                let cy: Vec<f64> = fy.iter().map(|f| f * sin_t).collect();
-                rows(&|a, b| optics::sinc((a + b) * d), &cx, &cy);
-            }
-            Component::Jitter | Component::Gaussian => {
-                let (sx, sy) = if c == Component::Jitter {
-                    (self.jitter_sigma_rad, self.jitter_sigma_rad)
-                } else {
-                    self.gaussian_sigma_rad
-                };
-                let square = |s: f64| move |f: &f64| (s * f) * (s * f);
-                let cx: Vec<f64> = fx.iter().map(square(sx)).collect();
-                let cy: Vec<f64> = fy.iter().map(square(sy)).collect();
-                rows(&motion::gaussian_of_squares, &cx, &cy);
-            }
-            _ => {
-                let each = |a: f64, b: f64| self.component_unchecked(c, a, b, 1.0, None);
-                rows(&each, fx, fy);
-            }
+        let terms = self
+            .components
+            .iter()
+            .filter(|c| !c.is_chromatic())
+            .map(|&c| match c {
+                Component::Detector => {
+                    // optics::detector_footprint: sinc(fx·wx/F) · sinc(fy·wy/F).
+                    let fl = self.focal_length_m;
+                    let footprint = |w: f64| move |f: &f64| optics::sinc(f * w / fl);
+                    AchromaticTerm::Product(
+                        fx.iter().map(footprint(self.active_width_x_m)).collect(),
+                        fy.iter().map(footprint(self.active_width_y_m)).collect(),
+                    )
+                }
+                Component::Motion => {
+                    // motion::linear_motion: sinc((fx cos θ + fy sin θ) · d).
+                    let (sin_t, cos_t) = self.smear_direction_rad.sin_cos();
+                    AchromaticTerm::SincOfSum(
+                        fx.iter().map(|f| f * cos_t).collect(),
+                        fy.iter().map(|f| f * sin_t).collect(),
+                        self.smear_rad,
+                    )
+                }
+                Component::Jitter | Component::Gaussian => {
+                    let (sx, sy) = if c == Component::Jitter {
+                        (self.jitter_sigma_rad, self.jitter_sigma_rad)
+                    } else {
+                        self.gaussian_sigma_rad
+                    };
+                    let square = |s: f64| move |f: &f64| (s * f) * (s * f);
+                    AchromaticTerm::GaussianOfSquares(
+                        fx.iter().map(square(sx)).collect(),
+                        fy.iter().map(square(sy)).collect(),
+                    )
+                }
+                _ => AchromaticTerm::Direct(c),
+            })
+            .collect();
+        AchromaticSampler {
+            otf: self,
+            fx,
+            fy,
+            terms,
         }
     }
 
@@ -454,16 +455,61 @@ impl SystemOtf {
     /// functions, so every value equals the pointwise product bit for bit; the others
     /// sample by sample.
     pub fn on_grid(&self, grid: &FrequencyGrid) -> GridOtf<'_> {
-        let mut achromatic = Array2::<f64>::ones((grid.fy.len(), grid.fx.len()));
-        for c in self.components.iter().filter(|c| !c.is_chromatic()) {
-            self.multiply_on_grid(*c, grid, &mut achromatic);
-        }
+        let sampler = self.achromatic_sampler(grid);
+        let mut achromatic = Array2::<f64>::zeros((grid.fy.len(), grid.fx.len()));
+        Zip::indexed(&mut achromatic).par_for_each(|(v, u), a| *a = sampler.at(u, v));
         GridOtf {
             otf: self,
             fx: grid.fx.clone(),
             fy: grid.fy.clone(),
             achromatic,
         }
+    }
+}
+
+/// One wavelength-independent component on a grid, as [`AchromaticSampler`] evaluates it:
+/// from a column term (fx) and a row term (fy), or directly.
+#[derive(Debug, Clone)]
+enum AchromaticTerm {
+    /// `x[u] · y[v]`.
+    Product(Vec<f64>, Vec<f64>),
+    /// `sinc((x[u] + y[v]) · d)`.
+    SincOfSum(Vec<f64>, Vec<f64>, f64),
+    /// [`motion::gaussian_of_squares`]`(x[u], y[v])`.
+    GaussianOfSquares(Vec<f64>, Vec<f64>),
+    /// The component evaluated at (fx, fy).
+    Direct(Component),
+}
+
+/// The wavelength-independent product of a [`SystemOtf`] on a [`FrequencyGrid`], sample by
+/// sample ([`SystemOtf::achromatic_sampler`]), so that a caller can store it in its own
+/// layout and precision without a frame-sized f64 array.
+#[derive(Debug, Clone)]
+pub struct AchromaticSampler<'a> {
+    otf: &'a SystemOtf,
+    fx: &'a [f64],
+    fy: &'a [f64],
+    terms: Vec<AchromaticTerm>,
+}
+
+impl AchromaticSampler<'_> {
+    /// The product at fx index `u`, fy index `v`: the components multiplied one by one in
+    /// the order of [`SystemOtf::components`], starting from 1 (as
+    /// [`SystemOtf::evaluate`] takes them).
+    #[inline]
+    pub fn at(&self, u: usize, v: usize) -> f64 {
+        let mut a = 1.0;
+        for t in &self.terms {
+            a *= match t {
+                AchromaticTerm::Product(x, y) => x[u] * y[v],
+                AchromaticTerm::SincOfSum(x, y, d) => optics::sinc((x[u] + y[v]) * d),
+                AchromaticTerm::GaussianOfSquares(x, y) => motion::gaussian_of_squares(x[u], y[v]),
+                AchromaticTerm::Direct(c) => self
+                    .otf
+                    .component_unchecked(*c, self.fx[u], self.fy[v], 1.0, None),
+            };
+        }
+        a
     }
 }
 

@@ -338,7 +338,8 @@ fn slant_path_at_equal_heights_equals_horizontal_in_the_cascade() {
 /// per-column terms for the separable components) equals the pointwise product of the
 /// same components at every sample, bit for bit: footprint with unequal widths, smear at
 /// an oblique angle, jitter and an anisotropic Gaussian, on a grid with negative row
-/// frequencies and a non-square frame.
+/// frequencies and a non-square frame. The engine's per-sample `achromatic_sampler` and
+/// the grid it feeds (`RadialGrid::from_fn`, the f32 of each value) hold the same values.
 #[test]
 fn achromatic_grid_equals_the_pointwise_product_bit_for_bit() {
     let s = sensor(&[
@@ -361,10 +362,14 @@ fn achromatic_grid_equals_the_pointwise_product_bit_for_bit() {
     let grid = eoir::sensor::FrequencyGrid::real_fft(37, 50, 4e-5, 3e-5);
     let a = otf.on_grid(&grid).into_achromatic();
     assert_eq!(a.dim(), (37, 26));
+    let sampler = otf.achromatic_sampler(&grid);
+    let radial = eoir::imaging::RadialGrid::from_fn(&grid, |u, v| sampler.at(u, v));
     let mut distinct = std::collections::BTreeSet::new();
     for ((j, k), v) in a.indexed_iter() {
         let want = otf.product_where(grid.fx[k], grid.fy[j], 1.0, None, |c| !c.is_chromatic());
         assert_eq!(v.to_bits(), want.to_bits(), "sample ({j}, {k})");
+        assert_eq!(sampler.at(k, j).to_bits(), want.to_bits(), "sampler ({j}, {k})");
+        assert_eq!(radial.achromatic(k, j), want as f32 as f64, "radial ({j}, {k})");
         distinct.insert(v.to_bits());
     }
     // Not a trivial grid: the product takes many values, signed ones included.
