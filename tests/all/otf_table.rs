@@ -368,8 +368,16 @@ fn achromatic_grid_equals_the_pointwise_product_bit_for_bit() {
     for ((j, k), v) in a.indexed_iter() {
         let want = otf.product_where(grid.fx[k], grid.fy[j], 1.0, None, |c| !c.is_chromatic());
         assert_eq!(v.to_bits(), want.to_bits(), "sample ({j}, {k})");
-        assert_eq!(sampler.at(k, j).to_bits(), want.to_bits(), "sampler ({j}, {k})");
-        assert_eq!(radial.achromatic(k, j), want as f32 as f64, "radial ({j}, {k})");
+        assert_eq!(
+            sampler.at(k, j).to_bits(),
+            want.to_bits(),
+            "sampler ({j}, {k})"
+        );
+        assert_eq!(
+            radial.achromatic(k, j),
+            want as f32 as f64,
+            "radial ({j}, {k})"
+        );
         distinct.insert(v.to_bits());
     }
     // Not a trivial grid: the product takes many values, signed ones included.
