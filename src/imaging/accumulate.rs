@@ -7,7 +7,7 @@ use ndarray::Array2;
 use num_complex::Complex64;
 use rayon::prelude::*;
 
-use super::fft::{FftFloat, RealFft2, BLOCK_COLS};
+use super::fft::{vec_on_huge_pages, FftFloat, RealFft2, BLOCK_COLS};
 use super::otf_table::{ChunkProfile, CHUNK_LANES};
 #[cfg(doc)]
 use super::Imager;
@@ -74,7 +74,7 @@ impl RadialGrid {
     pub fn from_fn(grid: &FrequencyGrid, achromatic: impl Fn(usize, usize) -> f64 + Sync) -> Self {
         let (rows, cols) = (grid.fy.len(), grid.fx.len());
         let half = stored_rows(rows);
-        let mut a = vec![0.0f32; rows * cols];
+        let mut a = vec_on_huge_pages(rows * cols, 0.0f32);
         a.par_chunks_mut(rows.max(1))
             .enumerate()
             .for_each(|(u, col)| {
@@ -82,14 +82,10 @@ impl RadialGrid {
                     *x = achromatic(u, v) as f32;
                 }
             });
-        let rho = if rows == 0 {
-            Vec::new()
-        } else {
-            (0..cols * half)
-                .into_par_iter()
-                .map(|i| grid.fx[i / half].hypot(grid.fy[i % half]))
-                .collect()
-        };
+        let mut rho = vec_on_huge_pages(if rows == 0 { 0 } else { cols * half }, 0.0f64);
+        rho.par_iter_mut()
+            .enumerate()
+            .for_each(|(i, r)| *r = grid.fx[i / half].hypot(grid.fy[i % half]));
         RadialGrid {
             rows,
             rho_max: rho.iter().copied().fold(0.0, f64::max),
