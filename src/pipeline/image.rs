@@ -104,8 +104,9 @@ impl ImagingStage {
 
     /// Bytes one frame in flight holds while it is imaged, beyond what
     /// [`crate::limits::check_run`] already counts for the run: per colour channel the f64
-    /// accumulator (`[fx][fy]`) and its untransposed copy at the end (2 × 16 B per
-    /// half-spectrum sample), the row spectra of one chunk of [`BANDS_PER_CHUNK`] bands
+    /// accumulator (`[fx][fy]`) and room for an untransposed copy at the end (2 × 16 B per
+    /// half-spectrum sample; only a non-integer detector/scene ratio makes the copy, so for
+    /// integer ratios this is an upper bound), the row spectra of one chunk of [`BANDS_PER_CHUNK`] bands
     /// (8 B per sample in f32, 16 B in f64), the planes of the chunk being transformed and
     /// of the one being read (2 × [`BANDS_PER_CHUNK`] scene planes, f32), and the f64
     /// detector image it hands over (`detector` = (rows, cols)). This is what a second,
