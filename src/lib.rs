@@ -66,6 +66,7 @@ pub mod imaging;
 pub mod input;
 pub mod io;
 pub mod limits;
+pub mod memory;
 pub mod motion;
 pub mod optics;
 pub mod pipeline;

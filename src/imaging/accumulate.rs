@@ -7,10 +7,11 @@ use ndarray::Array2;
 use num_complex::Complex64;
 use rayon::prelude::*;
 
-use super::fft::{vec_on_huge_pages, FftFloat, RealFft2, BLOCK_COLS};
+use super::fft::{FftFloat, RealFft2, BLOCK_COLS};
 use super::otf_table::{ChunkProfile, CHUNK_LANES};
 #[cfg(doc)]
 use super::Imager;
+use crate::memory::vec_on_huge_pages;
 use crate::sensor::FrequencyGrid;
 
 /// The half-plane frequency samples of a padded frame as the fused accumulation reads them

@@ -231,32 +231,6 @@ pub struct SpectrumBuffer<T: FftFloat> {
     len: usize,
 }
 
-/// A vector of `len` copies of `value` whose whole 2 MiB pages the kernel is asked to back
-/// with huge pages (Linux `MADV_HUGEPAGE`, given before the memory is first written;
-/// transparent huge pages are often enabled on request only). For the engine's
-/// frame-sized buffers (row spectra, accumulator, frequency grid), which every chunk
-/// streams through: one TLB entry and one page fault per 2 MiB instead of 512. A hint
-/// only: the values are the same, and where the kernel declines, nothing changes.
-pub(crate) fn vec_on_huge_pages<V: Clone>(len: usize, value: V) -> Vec<V> {
-    let mut v: Vec<V> = Vec::with_capacity(len);
-    #[cfg(target_os = "linux")]
-    {
-        const HUGE: usize = 2 << 20;
-        let (ptr, bytes) = (v.as_ptr() as usize, len * std::mem::size_of::<V>());
-        let (start, end) = (ptr.div_ceil(HUGE) * HUGE, (ptr + bytes) / HUGE * HUGE);
-        if end > start {
-            // SAFETY: advice on whole pages inside the allocation just made (not yet
-            // written); MADV_HUGEPAGE changes neither contents nor validity. A failure
-            // only means the advice was not taken.
-            unsafe {
-                libc::madvise(start as *mut libc::c_void, end - start, libc::MADV_HUGEPAGE);
-            }
-        }
-    }
-    v.resize(len, value);
-    v
-}
-
 impl<T: FftFloat> SpectrumBuffer<T> {
     /// Alignment of the first sample, bytes.
     pub const ALIGN: usize = 64;
@@ -265,7 +239,7 @@ impl<T: FftFloat> SpectrumBuffer<T> {
     pub fn new(len: usize) -> Self {
         let size = std::mem::size_of::<Complex<T>>();
         let slack = Self::ALIGN / size;
-        let buf = vec_on_huge_pages(len + slack, Complex::new(T::zero(), T::zero()));
+        let buf = crate::memory::vec_on_huge_pages(len + slack, Complex::new(T::zero(), T::zero()));
         // The allocation is aligned to the sample's own alignment at least; the start is
         // the first sample on a 64-byte boundary (within `slack` samples).
         let start = buf.as_ptr().align_offset(Self::ALIGN).min(slack);
@@ -851,17 +825,6 @@ mod tests {
         for (rows, cols) in [(40, 36), (33, 35), (7, 8), (1, 5)] {
             check::<f64>(rows, cols);
             check::<f32>(rows, cols);
-        }
-    }
-
-    /// The huge-page hint changes nothing about the values: empty, below one huge page,
-    /// and across several.
-    #[test]
-    fn vectors_on_huge_pages_hold_their_values() {
-        for len in [0usize, 1, 1000, 3 << 20] {
-            let v = vec_on_huge_pages(len, 2.5f32);
-            assert_eq!(v.len(), len);
-            assert!(v.iter().all(|x| *x == 2.5));
         }
     }
 

@@ -494,7 +494,7 @@ impl Imager {
     ) -> Result<(Array2<f64>, ImagingStats)> {
         let (ny, nx) = (self.sampling.y.padded_len, self.sampling.x.padded_len);
         let hc = nx / 2 + 1;
-        let mut acc_t = fft::vec_on_huge_pages(hc * ny, Complex64::new(0.0, 0.0));
+        let mut acc_t = crate::memory::vec_on_huge_pages(hc * ny, Complex64::new(0.0, 0.0));
         let mut stats = ImagingStats {
             padded_shape: (ny, nx),
             precision: self.precision,

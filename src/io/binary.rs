@@ -58,8 +58,13 @@ impl PlanePool {
                 v
             }
             // Zeroed by the allocator (fresh pages from the kernel, no memset), so the
-            // reads into it need not zero it again.
-            None => vec![0.0; n],
+            // reads into it need not zero it again; huge pages asked for before the
+            // first read touches them.
+            None => {
+                let v = vec![0.0; n];
+                crate::memory::advise_huge_pages(&v);
+                v
+            }
         }
     }
 
