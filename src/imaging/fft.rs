@@ -566,25 +566,31 @@ impl<T: FftFloat> RealFft2<T> {
         let s = spectrum.as_slice_mut().expect("standard layout");
         self.columns_in_place(s, true);
         let _ = scratch; // kept in the signature for callers; the column pass is in place
-        let norm = T::nearest_from_f64(1.0 / (rows * cols) as f64);
         let o = out.as_slice_mut().expect("standard layout");
         o.par_chunks_mut(cols)
             .zip(s.par_chunks_mut(hc))
             .for_each_init(
                 || self.c2r.make_scratch_vec(),
-                |sc, (o, i)| {
-                    // realfft requires exactly real DC (and Nyquist for even lengths) bins; for
-                    // the spectrum of a real image they are real up to rounding.
-                    i[0].im = T::zero();
-                    if cols % 2 == 0 {
-                        i[hc - 1].im = T::zero();
-                    }
-                    let _ = self.c2r.process_with_scratch(i, o, sc);
-                    for v in o.iter_mut() {
-                        *v = *v * norm;
-                    }
-                },
+                |sc, (o, i)| self.inverse_row(i, o, sc),
             );
+    }
+
+    /// The row step of the inverse: the half spectrum `row` (`cols/2+1`, used as scratch)
+    /// to the real row `out` (`cols`), normalised by 1/(rows·cols) for the whole 2-D
+    /// inverse. realfft requires exactly real DC (and, for even lengths, Nyquist) bins;
+    /// for the spectrum of a real image they are real up to rounding, so their imaginary
+    /// parts are set to 0.
+    fn inverse_row(&self, row: &mut [Complex<T>], out: &mut [T], scratch: &mut [Complex<T>]) {
+        let hc = row.len();
+        row[0].im = T::zero();
+        if self.cols % 2 == 0 {
+            row[hc - 1].im = T::zero();
+        }
+        let _ = self.c2r.process_with_scratch(row, out, scratch);
+        let norm = T::nearest_from_f64(1.0 / (self.rows * self.cols) as f64);
+        for v in out.iter_mut() {
+            *v = *v * norm;
+        }
     }
 
     /// [`RealFft2::inverse`] of a half-plane spectrum held transposed (`spec_t[u·rows + v]`,
@@ -625,7 +631,6 @@ impl<T: FftFloat> RealFft2<T> {
             |sc, block| self.col_inverse.process_with_scratch(block, sc),
         );
         let spec_t: &[Complex<T>] = spec_t;
-        let norm = T::nearest_from_f64(1.0 / (rows * cols) as f64);
         out.axis_iter_mut(Axis(0))
             .into_par_iter()
             .zip(wanted.par_iter())
@@ -635,16 +640,7 @@ impl<T: FftFloat> RealFft2<T> {
                     for (u, x) in row.iter_mut().enumerate() {
                         *x = spec_t[u * rows + y];
                     }
-                    // As in `inverse`: realfft requires exactly real DC (and Nyquist) bins.
-                    row[0].im = T::zero();
-                    if cols % 2 == 0 {
-                        row[hc - 1].im = T::zero();
-                    }
-                    let o = o.as_slice_mut().expect("standard layout");
-                    let _ = self.c2r.process_with_scratch(row, o, sc);
-                    for v in o.iter_mut() {
-                        *v = *v * norm;
-                    }
+                    self.inverse_row(row, o.as_slice_mut().expect("standard layout"), sc);
                 },
             );
     }
