@@ -120,16 +120,18 @@ impl FramePad {
             }
             return;
         }
-        // A pad row: blend the two source rows once, then the same taps.
-        let blended: Vec<f64> = ra
-            .iter()
-            .zip(rb.iter())
-            .map(|(a, b)| ty.w * *a as f64 + (1.0 - ty.w) * *b as f64)
-            .collect();
-        for (o, v) in out[x0..x0 + n].iter_mut().zip(&blended) {
-            *o = T::nearest_from_f64(*v);
+        // A pad row: the blend of the two source rows, sample by sample as it is needed
+        // (the same f64 value wherever it is used, so no blended copy of the row).
+        let v = |c: usize| ty.w * ra[c] as f64 + (1.0 - ty.w) * rb[c] as f64;
+        if let (Some(a), Some(b)) = (ra.as_slice(), rb.as_slice()) {
+            for ((o, a), b) in out[x0..x0 + n].iter_mut().zip(a).zip(b) {
+                *o = T::nearest_from_f64(ty.w * *a as f64 + (1.0 - ty.w) * *b as f64);
+            }
+        } else {
+            for (c, o) in out[x0..x0 + n].iter_mut().enumerate() {
+                *o = T::nearest_from_f64(v(c));
+            }
         }
-        let v = |c: usize| blended[c];
         for (o, tx) in out[..x0].iter_mut().zip(&taps[..x0]) {
             *o = T::nearest_from_f64(tx.w * v(tx.a) + (1.0 - tx.w) * v(tx.b));
         }
@@ -168,23 +170,28 @@ mod tests {
             1 => 0.0,
             k => (k as f32) * 1.37e3 / (1.0 + (r * c) as f32),
         });
-        let view = plane.view();
-        for r in 0..ly {
-            let mut out = vec![T::nearest_from_f64(9.0); lx];
-            pad.row(&view, r, &mut out);
-            let want = reference::<T>(&pad, &plane, r);
-            for (c, (a, b)) in out.iter().zip(&want).enumerate() {
-                assert_eq!(
-                    a.widen().to_bits(),
-                    b.widen().to_bits(),
-                    "{rows}x{cols} row {r} col {c}"
-                );
+        // The same values in column-major order: rows that are not contiguous slices take
+        // the element-wise paths.
+        let column_major = plane.t().as_standard_layout().into_owned();
+        for view in [plane.view(), column_major.t()] {
+            for r in 0..ly {
+                let mut out = vec![T::nearest_from_f64(9.0); lx];
+                pad.row(&view, r, &mut out);
+                let want = reference::<T>(&pad, &plane, r);
+                for (c, (a, b)) in out.iter().zip(&want).enumerate() {
+                    assert_eq!(
+                        a.widen().to_bits(),
+                        b.widen().to_bits(),
+                        "{rows}x{cols} row {r} col {c}"
+                    );
+                }
             }
         }
     }
 
     /// The interior fast path and the pad-row path equal the two-tap definition bit for
-    /// bit, for both transform precisions, including signed zeros.
+    /// bit, for both transform precisions, including signed zeros, whether the plane's
+    /// rows are contiguous or not.
     #[test]
     fn rows_match_the_tap_definition_bit_for_bit() {
         check::<f32>(9, 13, 4, 5);
