@@ -42,7 +42,8 @@ unsafe impl Sync for Mapping {}
 impl Mapping {
     /// Maps `bytes` bytes of `file` from `offset` (any alignment), read-only, with the
     /// pages mapped at once (one call instead of a fault per page; on Linux in 2 MiB
-    /// pages where the page cache holds or can read 2 MiB folios, see `populate`). Fails (and the caller falls back to reading) if the file
+    /// pages where the page cache holds or can read 2 MiB folios, see
+    /// `advise_and_populate`). Fails (and the caller falls back to reading) if the file
     /// cannot be mapped or no longer covers the range.
     pub fn new(file: &File, offset: u64, bytes: usize) -> std::io::Result<Self> {
         let file_len = file.metadata()?.len();
@@ -102,15 +103,57 @@ fn page_size() -> u64 {
     u64::try_from(page).ok().filter(|&p| p > 0).unwrap_or(4096)
 }
 
+/// How a map's pages are populated when it is made.
+#[cfg(unix)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Populate {
+    /// `MADV_HUGEPAGE`, then `MADV_POPULATE_READ` (Linux 5.14; see [`advise_and_populate`]).
+    Advised,
+    /// `MAP_POPULATE` (older Linux kernels, Android), or nothing where the system has
+    /// neither: the pages are then mapped as they are first touched.
+    AtMap,
+}
+
+/// Set once `MADV_POPULATE_READ` has been refused as unknown (Linux before 5.14): later
+/// maps go straight to `MAP_POPULATE`.
+#[cfg(target_os = "linux")]
+static POPULATE_READ_REFUSED: AtomicBool = AtomicBool::new(false);
+
 /// Maps `len` bytes of `file` from the page-aligned `offset`, read-only and private,
-/// the pages populated at once where the system can (Linux: see [`populate`]; Android:
-/// `MAP_POPULATE`).
+/// the pages populated at once where the system can: on Linux advised and populated in
+/// 2 MiB pages ([`advise_and_populate`]), falling back to `MAP_POPULATE` on kernels that
+/// do not know `MADV_POPULATE_READ`; elsewhere `MAP_POPULATE` where it exists.
 #[cfg(unix)]
 fn map_read_only(file: &File, offset: u64, len: usize) -> std::io::Result<*mut c_void> {
+    #[cfg(target_os = "linux")]
+    if !POPULATE_READ_REFUSED.load(Ordering::Relaxed) {
+        match map_populated(file, offset, len, Populate::Advised) {
+            Err(e) if e.raw_os_error() == Some(libc::EINVAL) => {
+                POPULATE_READ_REFUSED.store(true, Ordering::Relaxed);
+            }
+            other => return other,
+        }
+    }
+    map_populated(file, offset, len, Populate::AtMap)
+}
+
+/// [`map_read_only`] with the population chosen: `Err(EINVAL)` from
+/// [`Populate::Advised`] means the kernel refused `MADV_POPULATE_READ` (the map is
+/// undone).
+#[cfg(unix)]
+fn map_populated(
+    file: &File,
+    offset: u64,
+    len: usize,
+    populate: Populate,
+) -> std::io::Result<*mut c_void> {
     use std::os::fd::AsRawFd;
-    #[cfg(target_os = "android")]
-    let flags = libc::MAP_PRIVATE | libc::MAP_POPULATE;
-    #[cfg(not(target_os = "android"))]
+    #[cfg(any(target_os = "linux", target_os = "android"))]
+    let flags = match populate {
+        Populate::Advised => libc::MAP_PRIVATE,
+        Populate::AtMap => libc::MAP_PRIVATE | libc::MAP_POPULATE,
+    };
+    #[cfg(not(any(target_os = "linux", target_os = "android")))]
     let flags = libc::MAP_PRIVATE;
     let off = libc::off_t::try_from(offset).map_err(std::io::Error::other)?;
     // SAFETY: a fresh mapping (null hint) of a file descriptor the caller holds open, of a
@@ -130,7 +173,12 @@ fn map_read_only(file: &File, offset: u64, len: usize) -> std::io::Result<*mut c
         return Err(std::io::Error::last_os_error());
     }
     #[cfg(target_os = "linux")]
-    populate(base, len);
+    if populate == Populate::Advised {
+        if let Err(e) = advise_and_populate(base, len) {
+            unmap(base, len);
+            return Err(e);
+        }
+    }
     Ok(base)
 }
 
@@ -142,17 +190,26 @@ fn map_read_only(file: &File, offset: u64, len: usize) -> std::io::Result<*mut c
 /// project's benchmark machine a 4 MiB plane in 2 MiB folios maps in 0.05 ms and unmaps
 /// in 0.01 ms, against 0.5 and 0.1 ms in 4 KiB folios; the row pass reading it needs 512
 /// times fewer TLB entries. Then `MADV_POPULATE_READ` (Linux 5.14) maps every page, as
-/// `MAP_POPULATE` did. Both are hints: where either is refused (an older kernel,
-/// transparent huge pages off) the pages are mapped as they are first touched, and the
-/// values are the same. A file truncated meanwhile is caught by [`Mapping::new`]'s check.
+/// `MAP_POPULATE` would, which cannot be used here because it populates before any
+/// advice can be given. The huge-page advice is a hint (refused where transparent huge
+/// pages are off; the values never depend on it). `Err(EINVAL)`: the kernel does not
+/// know `MADV_POPULATE_READ`. Any other failure of it (an I/O error, a file truncated
+/// meanwhile) is left, as `MAP_POPULATE` leaves it, to the first touch and to
+/// [`Mapping::new`]'s size check.
 #[cfg(target_os = "linux")]
-fn populate(base: *mut c_void, len: usize) {
+fn advise_and_populate(base: *mut c_void, len: usize) -> std::io::Result<()> {
     // SAFETY: advice on exactly the mapping just made, which nothing references yet;
     // neither call changes its contents or validity.
     unsafe {
         libc::madvise(base, len, libc::MADV_HUGEPAGE);
-        libc::madvise(base, len, libc::MADV_POPULATE_READ);
+        if libc::madvise(base, len, libc::MADV_POPULATE_READ) != 0 {
+            let e = std::io::Error::last_os_error();
+            if e.raw_os_error() == Some(libc::EINVAL) {
+                return Err(e);
+            }
+        }
     }
+    Ok(())
 }
 
 /// Unmaps what [`map_read_only`] mapped.
@@ -367,5 +424,45 @@ mod tests {
         assert!(m.as_f32().is_none());
         assert!(Mapping::new(&f, 12, 4 * 5000 + 1).is_err());
         assert!(Mapping::new(&f, 12, 0).is_err());
+    }
+
+    /// Resident bytes of the mapping that starts at `base` (`/proc/self/smaps`).
+    #[cfg(target_os = "linux")]
+    fn resident_bytes(base: *mut c_void) -> u64 {
+        let smaps = std::fs::read_to_string("/proc/self/smaps").unwrap();
+        let start = format!("{:x}-", base as usize);
+        let mut lines = smaps.lines().skip_while(|l| !l.starts_with(&start));
+        assert!(lines.next().is_some(), "mapping not in smaps");
+        let rss = lines.find(|l| l.starts_with("Rss:")).unwrap();
+        let kib: u64 = rss.split_whitespace().nth(1).unwrap().parse().unwrap();
+        kib * 1024
+    }
+
+    /// Both ways of populating give the file's values and map every page before the
+    /// first touch (the mapping's resident set is its whole length on return).
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn maps_are_populated_either_way() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("plane.bin");
+        let values: Vec<f32> = (0..(3 << 18)).map(|i| (i % 977) as f32).collect();
+        let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_ne_bytes()).collect();
+        std::fs::write(&path, &bytes).unwrap();
+        let f = File::open(&path).unwrap();
+        for how in [Populate::Advised, Populate::AtMap] {
+            let base = match map_populated(&f, 0, bytes.len(), how) {
+                Ok(b) => b,
+                // A kernel before 5.14: the fallback is what runs there.
+                Err(e) if how == Populate::Advised && e.raw_os_error() == Some(libc::EINVAL) => {
+                    continue
+                }
+                Err(e) => panic!("{how:?}: {e}"),
+            };
+            assert_eq!(resident_bytes(base), bytes.len() as u64, "{how:?}");
+            // SAFETY: the live read-only mapping of `bytes.len()` bytes made above.
+            let mapped = unsafe { std::slice::from_raw_parts(base as *const u8, bytes.len()) };
+            assert!(mapped == &bytes[..], "{how:?}");
+            unmap(base, bytes.len());
+        }
     }
 }
