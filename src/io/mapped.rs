@@ -108,6 +108,7 @@ fn page_size() -> u64 {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Populate {
     /// `MADV_HUGEPAGE`, then `MADV_POPULATE_READ` (Linux 5.14; see [`advise_and_populate`]).
+    #[cfg_attr(not(target_os = "linux"), allow(dead_code))]
     Advised,
     /// `MAP_POPULATE` (older Linux kernels, Android), or nothing where the system has
     /// neither: the pages are then mapped as they are first touched.
@@ -154,7 +155,7 @@ fn map_populated(
         Populate::AtMap => libc::MAP_PRIVATE | libc::MAP_POPULATE,
     };
     #[cfg(not(any(target_os = "linux", target_os = "android")))]
-    let flags = libc::MAP_PRIVATE;
+    let (flags, _) = (libc::MAP_PRIVATE, populate);
     let off = libc::off_t::try_from(offset).map_err(std::io::Error::other)?;
     // SAFETY: a fresh mapping (null hint) of a file descriptor the caller holds open, of a
     // range the file covers (checked by the caller); read-only and private, so the memory
