@@ -13,7 +13,9 @@
 //! baseline), `EOIR_BENCH_REPEAT` (runs per case, default 3), `EOIR_BENCH_PRECISION`
 //! (`f32` default, or `f64`), `EOIR_BENCH_INTERLEAVE` (`bsq` default, `bil`, `bip`: the
 //! layout of the ENVI file), `EOIR_BENCH_BASELINE_MAX_VOXELS` (skip the baseline above
-//! this many voxels; default 2^28).
+//! this many voxels; default 2^28), `EOIR_BENCH_RECACHE` (default 1: before each case the
+//! cube is dropped from the page cache and read back by one untimed `eoir run`, so the
+//! timings do not depend on how the file was cached before; 0: keep the cache as it is).
 
 mod bench_common;
 use bench_common::{median, peak_rss_mib, swir_meta, swir_sensor_config};
@@ -132,6 +134,23 @@ fn reinterleave(hdr: &Path, data: &Array3<f32>, interleave: &str) -> std::io::Re
     )
 }
 
+/// Asks the kernel to drop `path`'s cached pages (`POSIX_FADV_DONTNEED`; the file is
+/// synced, so none is dirty). A no-op off Linux.
+fn drop_from_page_cache(path: &Path) -> std::io::Result<()> {
+    let f = std::fs::File::open(path)?;
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::fd::AsRawFd;
+        // SAFETY: advice on a file descriptor we hold open; it changes no data.
+        let r = unsafe { libc::posix_fadvise(f.as_raw_fd(), 0, 0, libc::POSIX_FADV_DONTNEED) };
+        if r != 0 {
+            return Err(std::io::Error::from_raw_os_error(r));
+        }
+    }
+    drop(f);
+    Ok(())
+}
+
 struct Settings {
     dir: PathBuf,
     python: String,
@@ -139,6 +158,7 @@ struct Settings {
     precision: String,
     interleave: String,
     baseline_max_voxels: usize,
+    recache: bool,
 }
 
 /// One case: (table row, per-transform row).
@@ -215,11 +235,10 @@ fn run(
     let mut streams = vec![];
     let (mut base_walls, mut base_rsss) = (vec![], vec![]);
     let mut one_fft = f64::NAN;
-    for _ in 0..set.repeat {
-        // eoir run end to end, as a child under /usr/bin/time -v.
-        let outdir = case.join("out");
+    // eoir run end to end, as a child under /usr/bin/time -v.
+    let outdir = case.join("out");
+    let eoir_run = || -> Result<std::process::Output, Box<dyn std::error::Error>> {
         let _ = std::fs::remove_dir_all(&outdir);
-        let t = Instant::now();
         let o = Command::new("/usr/bin/time")
             .arg("-v")
             .arg(&eoir)
@@ -235,11 +254,25 @@ fn run(
             .arg("-o")
             .arg(&outdir)
             .output()?;
-        walls.push(t.elapsed().as_secs_f64());
-        let err = String::from_utf8_lossy(&o.stderr);
         if !o.status.success() {
+            let err = String::from_utf8_lossy(&o.stderr);
             return Err(format!("eoir run failed: {err}").into());
         }
+        Ok(o)
+    };
+    if set.recache {
+        // The cube's page-cache state changes the timings by ~10 % at 1024² (plane maps of
+        // 4 KiB folios cost ten times those of 2 MiB folios; BENCHMARKS.md round 13), and
+        // it depends on how the file was last read. Drop it from the cache and let one
+        // untimed run read it back, so every series starts from the state eoir leaves.
+        drop_from_page_cache(&hdr.with_extension("img"))?;
+        eoir_run()?;
+    }
+    for _ in 0..set.repeat {
+        let t = Instant::now();
+        let o = eoir_run()?;
+        walls.push(t.elapsed().as_secs_f64());
+        let err = String::from_utf8_lossy(&o.stderr);
         rsss.push(peak_rss_mib(&err));
         let report: serde_json::Value =
             serde_json::from_slice(&std::fs::read(outdir.join("report.json"))?)?;
@@ -327,6 +360,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         precision: env("EOIR_BENCH_PRECISION", "f32"),
         interleave: env("EOIR_BENCH_INTERLEAVE", "bsq"),
         baseline_max_voxels: env("EOIR_BENCH_BASELINE_MAX_VOXELS", "268435456").parse()?,
+        recache: env("EOIR_BENCH_RECACHE", "1") != "0",
     };
     let cases: Vec<String> = std::env::args().skip(1).collect();
     let cases = if cases.is_empty() {
