@@ -29,6 +29,7 @@ pub use sampling::{AxisSampling, Sampling, COARSER_TOLERANCE};
 mod padding;
 mod r2c;
 mod sampling;
+use sampling::shift_phase;
 mod transpose;
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -782,21 +783,10 @@ impl Imager {
         let start_x = sx.position(0);
         let (fy, fx) = (start_y - start_y.floor(), start_x - start_x.floor());
         if fy != 0.0 || fx != 0.0 {
-            let ramp = |n: usize, s: f64, k: usize, signed: bool| -> Complex64 {
-                let kk = if signed && k > n / 2 {
-                    k as f64 - n as f64
-                } else {
-                    k as f64
-                };
-                if n % 2 == 0 && k == n / 2 {
-                    Complex64::new((std::f64::consts::PI * s).cos(), 0.0)
-                } else {
-                    Complex64::from_polar(1.0, 2.0 * std::f64::consts::PI * kk * s / n as f64)
-                }
-            };
-            let ry: Vec<Complex64> = (0..ny).map(|v| ramp(ny, fy, v, true)).collect();
+            let ry: Vec<Complex64> = (0..ny).map(|v| shift_phase(ny, v, fy)).collect();
             acc_t.par_chunks_mut(ny).enumerate().for_each(|(u, col)| {
-                let x = ramp(nx, fx, u, false);
+                // u ≤ nx/2 (the half plane): its signed frequency is u itself.
+                let x = shift_phase(nx, u, fx);
                 for (a, r) in col.iter_mut().zip(&ry) {
                     *a *= r * x;
                 }
@@ -822,7 +812,6 @@ impl Imager {
         let (sy, sx) = (&self.sampling.y, &self.sampling.x);
         let (ny, nx) = (sy.padded_len, sx.padded_len);
         let hx = nx / 2 + 1;
-        let two_pi = 2.0 * std::f64::consts::PI;
         // Step 1: along y for every column frequency: A[i, u] = Σ_v E[v, u] e^{2πi v' y_i / ny}.
         let a_rows: Vec<Vec<Complex64>> = (0..sy.detector_len)
             .into_par_iter()
@@ -830,16 +819,7 @@ impl Imager {
                 let y = sy.position(i);
                 let mut row = vec![Complex64::new(0.0, 0.0); hx];
                 for v in 0..ny {
-                    let w = if ny % 2 == 0 && v == ny / 2 {
-                        Complex64::new((std::f64::consts::PI * y).cos(), 0.0)
-                    } else {
-                        let vv = if v > ny / 2 {
-                            v as f64 - ny as f64
-                        } else {
-                            v as f64
-                        };
-                        Complex64::from_polar(1.0, two_pi * vv * y / ny as f64)
-                    };
+                    let w = shift_phase(ny, v, y);
                     for (r, e) in row.iter_mut().zip(acc.row(v)) {
                         *r += w * e;
                     }
@@ -853,12 +833,11 @@ impl Imager {
                 let x = sx.position(j);
                 (0..hx)
                     .map(|u| {
-                        if u == 0 {
-                            Complex64::new(1.0, 0.0)
-                        } else if nx % 2 == 0 && u == nx / 2 {
-                            Complex64::new((std::f64::consts::PI * x).cos(), 0.0)
+                        let p = shift_phase(nx, u, x);
+                        if u == 0 || (nx % 2 == 0 && u == nx / 2) {
+                            p
                         } else {
-                            2.0 * Complex64::from_polar(1.0, two_pi * u as f64 * x / nx as f64)
+                            2.0 * p
                         }
                     })
                     .collect()

@@ -3,6 +3,8 @@
 //! padding the transform adds; and whether point sampling (integer k on both axes) or
 //! trigonometric interpolation turns the filtered scene into detector pixels.
 
+use num_complex::Complex64;
+
 use crate::error::{Error, Result};
 use crate::scene::sizing::paraxial_extent_rad;
 use crate::scene::{CubeMeta, Geometry};
@@ -114,5 +116,63 @@ impl Sampling {
             integer,
             warnings,
         })
+    }
+}
+
+/// The factor that shifts an `n`-point axis by `s` samples at frequency bin `k`:
+/// `e^{2πi k′ s / n}`, with k′ the signed frequency (`k − n` above n/2). On an even axis the
+/// Nyquist bin (k = n/2) is its own negative, so it takes the average of the two factors,
+/// `cos(πs)` (real): the shifted frame stays real. Both detector-sampling paths (the
+/// integer ratio's phase ramp and the trigonometric interpolant) use it.
+pub(super) fn shift_phase(n: usize, k: usize, s: f64) -> Complex64 {
+    if n % 2 == 0 && k == n / 2 {
+        return Complex64::new((std::f64::consts::PI * s).cos(), 0.0);
+    }
+    let signed = if k > n / 2 {
+        k as f64 - n as f64
+    } else {
+        k as f64
+    };
+    Complex64::from_polar(1.0, 2.0 * std::f64::consts::PI * signed * s / n as f64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Definition checks: the signed frequency above n/2 (conjugate pairs), the real
+    /// Nyquist factor on even axes only, and an integer shift of a bin's own period is
+    /// the identity.
+    #[test]
+    fn shift_phase_is_the_signed_frequency_ramp_with_a_real_nyquist_bin() {
+        let s = 0.37;
+        for n in [7usize, 8, 1080] {
+            assert_eq!(shift_phase(n, 0, s), Complex64::new(1.0, 0.0));
+            for k in 1..n {
+                let p = shift_phase(n, k, s);
+                if n % 2 == 0 && k == n / 2 {
+                    assert_eq!(p, Complex64::new((std::f64::consts::PI * s).cos(), 0.0));
+                    continue;
+                }
+                assert!((p.norm() - 1.0).abs() < 1e-15, "n {n} k {k}");
+                let q = shift_phase(n, n - k, s);
+                assert!((p - q.conj()).norm() < 1e-12, "n {n} k {k}");
+                let kk = if k > n / 2 {
+                    k as f64 - n as f64
+                } else {
+                    k as f64
+                };
+                let want = 2.0 * std::f64::consts::PI * kk * s / n as f64;
+                assert!((p.arg() - want).abs() < 1e-12, "n {n} k {k}");
+            }
+            // A shift by n samples: every factor (Nyquist included, cos(nπ) = ±1 with n even) is 1.
+            for k in 0..n {
+                let p = shift_phase(n, k, n as f64);
+                assert!(
+                    (p - Complex64::new(1.0, 0.0)).norm() < 1e-9,
+                    "n {n} k {k}: {p}"
+                );
+            }
+        }
     }
 }
