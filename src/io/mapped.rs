@@ -103,59 +103,45 @@ fn page_size() -> u64 {
     u64::try_from(page).ok().filter(|&p| p > 0).unwrap_or(4096)
 }
 
-/// How a map's pages are populated when it is made.
-#[cfg(unix)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Populate {
-    /// `MADV_HUGEPAGE`, then `MADV_POPULATE_READ` (Linux 5.14; see [`advise_and_populate`]).
-    #[cfg_attr(not(target_os = "linux"), allow(dead_code))]
-    Advised,
-    /// `MAP_POPULATE` (older Linux kernels, Android), or nothing where the system has
-    /// neither: the pages are then mapped as they are first touched.
-    AtMap,
-}
-
 /// Set once `MADV_POPULATE_READ` has been refused as unknown (Linux before 5.14): later
 /// maps go straight to `MAP_POPULATE`.
 #[cfg(target_os = "linux")]
 static POPULATE_READ_REFUSED: AtomicBool = AtomicBool::new(false);
 
+/// `mmap` flags of a read-only private map populated when it is made, where the system
+/// can (`MAP_POPULATE`); elsewhere the pages are mapped as they are first touched.
+#[cfg(any(target_os = "linux", target_os = "android"))]
+const MAP_POPULATED: libc::c_int = libc::MAP_PRIVATE | libc::MAP_POPULATE;
+#[cfg(all(unix, not(any(target_os = "linux", target_os = "android"))))]
+const MAP_POPULATED: libc::c_int = libc::MAP_PRIVATE;
+
 /// Maps `len` bytes of `file` from the page-aligned `offset`, read-only and private,
-/// the pages populated at once where the system can: on Linux advised and populated in
-/// 2 MiB pages ([`advise_and_populate`]), falling back to `MAP_POPULATE` on kernels that
-/// do not know `MADV_POPULATE_READ`; elsewhere `MAP_POPULATE` where it exists.
+/// the pages populated at once where the system can: on Linux mapped, then advised and
+/// populated in 2 MiB pages ([`advise_and_populate`]), or with `MAP_POPULATE` on kernels
+/// that do not know `MADV_POPULATE_READ`; elsewhere with `MAP_POPULATE` where it exists.
 #[cfg(unix)]
 fn map_read_only(file: &File, offset: u64, len: usize) -> std::io::Result<*mut c_void> {
     #[cfg(target_os = "linux")]
     if !POPULATE_READ_REFUSED.load(Ordering::Relaxed) {
-        match map_populated(file, offset, len, Populate::Advised) {
-            Err(e) if e.raw_os_error() == Some(libc::EINVAL) => {
-                POPULATE_READ_REFUSED.store(true, Ordering::Relaxed);
-            }
-            other => return other,
+        let base = map_file(file, offset, len, libc::MAP_PRIVATE)?;
+        if advise_and_populate(base, len) {
+            return Ok(base);
         }
+        unmap(base, len);
+        POPULATE_READ_REFUSED.store(true, Ordering::Relaxed);
     }
-    map_populated(file, offset, len, Populate::AtMap)
+    map_file(file, offset, len, MAP_POPULATED)
 }
 
-/// [`map_read_only`] with the population chosen: `Err(EINVAL)` from
-/// [`Populate::Advised`] means the kernel refused `MADV_POPULATE_READ` (the map is
-/// undone).
+/// `mmap` of `len` bytes of `file` from the page-aligned `offset`, read-only, `flags`.
 #[cfg(unix)]
-fn map_populated(
+fn map_file(
     file: &File,
     offset: u64,
     len: usize,
-    populate: Populate,
+    flags: libc::c_int,
 ) -> std::io::Result<*mut c_void> {
     use std::os::fd::AsRawFd;
-    #[cfg(any(target_os = "linux", target_os = "android"))]
-    let flags = match populate {
-        Populate::Advised => libc::MAP_PRIVATE,
-        Populate::AtMap => libc::MAP_PRIVATE | libc::MAP_POPULATE,
-    };
-    #[cfg(not(any(target_os = "linux", target_os = "android")))]
-    let (flags, _) = (libc::MAP_PRIVATE, populate);
     let off = libc::off_t::try_from(offset).map_err(std::io::Error::other)?;
     // SAFETY: a fresh mapping (null hint) of a file descriptor the caller holds open, of a
     // range the file covers (checked by the caller); read-only and private, so the memory
@@ -173,13 +159,6 @@ fn map_populated(
     if base == libc::MAP_FAILED {
         return Err(std::io::Error::last_os_error());
     }
-    #[cfg(target_os = "linux")]
-    if populate == Populate::Advised {
-        if let Err(e) = advise_and_populate(base, len) {
-            unmap(base, len);
-            return Err(e);
-        }
-    }
     Ok(base)
 }
 
@@ -193,24 +172,19 @@ fn map_populated(
 /// times fewer TLB entries. Then `MADV_POPULATE_READ` (Linux 5.14) maps every page, as
 /// `MAP_POPULATE` would, which cannot be used here because it populates before any
 /// advice can be given. The huge-page advice is a hint (refused where transparent huge
-/// pages are off; the values never depend on it). `Err(EINVAL)`: the kernel does not
-/// know `MADV_POPULATE_READ`. Any other failure of it (an I/O error, a file truncated
-/// meanwhile) is left, as `MAP_POPULATE` leaves it, to the first touch and to
+/// pages are off; the values never depend on it). False: the kernel does not know
+/// `MADV_POPULATE_READ` (`EINVAL`). Any other failure of it (an I/O error, a file
+/// truncated meanwhile) is left, as `MAP_POPULATE` leaves it, to the first touch and to
 /// [`Mapping::new`]'s size check.
 #[cfg(target_os = "linux")]
-fn advise_and_populate(base: *mut c_void, len: usize) -> std::io::Result<()> {
+fn advise_and_populate(base: *mut c_void, len: usize) -> bool {
     // SAFETY: advice on exactly the mapping just made, which nothing references yet;
     // neither call changes its contents or validity.
     unsafe {
         libc::madvise(base, len, libc::MADV_HUGEPAGE);
-        if libc::madvise(base, len, libc::MADV_POPULATE_READ) != 0 {
-            let e = std::io::Error::last_os_error();
-            if e.raw_os_error() == Some(libc::EINVAL) {
-                return Err(e);
-            }
-        }
+        libc::madvise(base, len, libc::MADV_POPULATE_READ) == 0
+            || std::io::Error::last_os_error().raw_os_error() != Some(libc::EINVAL)
     }
-    Ok(())
 }
 
 /// Unmaps what [`map_read_only`] mapped.
@@ -450,19 +424,21 @@ mod tests {
         let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_ne_bytes()).collect();
         std::fs::write(&path, &bytes).unwrap();
         let f = File::open(&path).unwrap();
-        for how in [Populate::Advised, Populate::AtMap] {
-            let base = match map_populated(&f, 0, bytes.len(), how) {
-                Ok(b) => b,
-                // A kernel before 5.14: the fallback is what runs there.
-                Err(e) if how == Populate::Advised && e.raw_os_error() == Some(libc::EINVAL) => {
-                    continue
-                }
-                Err(e) => panic!("{how:?}: {e}"),
-            };
-            assert_eq!(resident_bytes(base), bytes.len() as u64, "{how:?}");
-            // SAFETY: the live read-only mapping of `bytes.len()` bytes made above.
+        // Advised and populated; then the fallback for kernels before 5.14, which is what
+        // runs there (skipped here if this kernel refuses the advice).
+        let advised = map_file(&f, 0, bytes.len(), libc::MAP_PRIVATE).unwrap();
+        let maps = if advise_and_populate(advised, bytes.len()) {
+            vec![("advised", advised)]
+        } else {
+            unmap(advised, bytes.len());
+            vec![]
+        };
+        let fallback = map_file(&f, 0, bytes.len(), MAP_POPULATED).unwrap();
+        for (how, base) in maps.into_iter().chain([("MAP_POPULATE", fallback)]) {
+            assert_eq!(resident_bytes(base), bytes.len() as u64, "{how}");
+            // SAFETY: a live read-only mapping of `bytes.len()` bytes made above.
             let mapped = unsafe { std::slice::from_raw_parts(base as *const u8, bytes.len()) };
-            assert!(mapped == &bytes[..], "{how:?}");
+            assert!(mapped == &bytes[..], "{how}");
             unmap(base, bytes.len());
         }
     }
