@@ -679,6 +679,10 @@ impl Imager {
     /// [`Sampling`]), then cos⁴ if the optics ask for it. The same values as
     /// [`Imager::detector_image_transposed`] of its transpose, which the engine uses.
     pub fn detector_image(&self, acc: &Array2<Complex64>) -> Array2<f64> {
+        if !self.sampling.integer {
+            // The interpolant reads this layout itself.
+            return self.with_cos4(self.sample_trigonometric(acc));
+        }
         let (ny, hc) = acc.dim();
         let mut acc_t = vec![Complex64::new(0.0, 0.0); ny * hc];
         // `untranspose` with the roles of the axes swapped is the transpose.
@@ -690,7 +694,7 @@ impl Imager {
             hc,
             ny,
         );
-        self.detector_image_transposed(&mut acc_t)
+        self.with_cos4(self.sample_integer(&mut acc_t))
     }
 
     /// [`Imager::detector_image`] of the spectrum as the engine accumulates it, transposed
@@ -699,18 +703,13 @@ impl Imager {
     /// ([`RealFft2::inverse_transposed_rows`]): no frame-sized transpose and no padded
     /// image.
     pub fn detector_image_transposed(&self, acc_t: &mut [Complex64]) -> Array2<f64> {
-        let mut e = if self.sampling.integer {
-            self.sample_integer(acc_t)
-        } else {
-            let (ny, hc) = self.fft.spectrum_shape();
-            let mut acc = Array2::<Complex64>::zeros((ny, hc));
-            fft::untranspose(acc_t, acc.as_slice_mut().expect("standard layout"), ny, hc);
-            self.sample_trigonometric(&acc)
-        };
-        if self.sensor.optics.cos4 {
-            self.apply_cos4(&mut e);
+        if self.sampling.integer {
+            return self.with_cos4(self.sample_integer(acc_t));
         }
-        e
+        let (ny, hc) = self.fft.spectrum_shape();
+        let mut acc = Array2::<Complex64>::zeros((ny, hc));
+        fft::untranspose(acc_t, acc.as_slice_mut().expect("standard layout"), ny, hc);
+        self.with_cos4(self.sample_trigonometric(&acc))
     }
 
     /// The half-plane frequency samples (ρ and the achromatic product) as the accumulation
@@ -857,8 +856,12 @@ impl Imager {
         out
     }
 
-    /// Multiplies by cos⁴θ, θ the off-axis angle of each detector pixel centre.
-    fn apply_cos4(&self, e: &mut Array2<f64>) {
+    /// `e` multiplied by cos⁴θ (θ the off-axis angle of each detector pixel centre) if the
+    /// optics ask for it, else `e`.
+    fn with_cos4(&self, mut e: Array2<f64>) -> Array2<f64> {
+        if !self.sensor.optics.cos4 {
+            return e;
+        }
         let (rows, cols) = e.dim();
         let d = self.sensor.ifov_rad();
         for ((r, c), v) in e.indexed_iter_mut() {
@@ -867,5 +870,6 @@ impl Imager {
             let cos2 = 1.0 / (1.0 + x * x + y * y);
             *v *= cos2 * cos2;
         }
+        e
     }
 }

@@ -321,3 +321,50 @@ fn coverage_and_field_of_view_errors() {
         "{err}"
     );
 }
+
+/// `Imager::detector_image` (spectrum `[fy, fx]`) and `detector_image_transposed` (the
+/// engine's `[fx][fy]` layout) give the same bits, for an integer detector/scene ratio
+/// (point sampling) and a non-integer one (trigonometric interpolation), cos⁴ on; and a
+/// spectrum holding only a DC value c images to the constant c/(rows·cols) of the padded
+/// frame when cos⁴ is off.
+#[test]
+fn detector_image_in_either_layout_and_of_a_constant() {
+    for (ratio, cos4) in [(2.0, true), (2.5, true), (2.0, false), (2.5, false)] {
+        let extra = format!("optics.cos4={cos4}");
+        let s = sensor(12, 16, &[extra.as_str()]);
+        let wl = grid(4.45, 5.3, 8);
+        let (rows, cols) = (40, 52);
+        let c = cube(
+            Array3::from_elem((wl.len(), rows, cols), 1.0f32),
+            wl,
+            s.ifov_rad() / ratio,
+        );
+        let imager = Imager::new(&s, &c.meta, &c.meta.geometry.unwrap(), 1e-4).unwrap();
+        let (ny, nx) = (
+            imager.sampling().y.padded_len,
+            imager.sampling().x.padded_len,
+        );
+        let hc = nx / 2 + 1;
+        let spec = Array2::from_shape_fn((ny, hc), |(v, u)| {
+            let (v, u) = (v as f64, u as f64);
+            Complex64::new((0.3 * v + 0.7 * u).sin(), (0.05 * v * u).cos() - 0.5)
+        });
+        let mut spec_t: Vec<Complex64> = (0..hc * ny).map(|i| spec[[i % ny, i / ny]]).collect();
+        let a = imager.detector_image(&spec);
+        let b = imager.detector_image_transposed(&mut spec_t);
+        assert_eq!(a.dim(), (12, 16));
+        let bits = |e: &Array2<f64>| e.iter().map(|v| v.to_bits()).collect::<Vec<u64>>();
+        assert_eq!(bits(&a), bits(&b), "ratio {ratio}, cos4 {cos4}");
+        if !cos4 {
+            let mut dc = Array2::<Complex64>::zeros((ny, hc));
+            dc[[0, 0]] = Complex64::new(3.0, 0.0);
+            let want = 3.0 / (ny * nx) as f64;
+            for v in imager.detector_image(&dc).iter() {
+                assert!(
+                    (v - want).abs() <= 1e-15 * want,
+                    "ratio {ratio}: {v} vs {want}"
+                );
+            }
+        }
+    }
+}
