@@ -140,38 +140,56 @@ pub(super) fn shift_phase(n: usize, k: usize, s: f64) -> Complex64 {
 mod tests {
     use super::*;
 
-    /// Definition checks: the signed frequency above n/2 (conjugate pairs), the real
-    /// Nyquist factor on even axes only, and an integer shift of a bin's own period is
-    /// the identity.
+    /// The shift theorem against an analytic signal: a real band-limited signal sampled
+    /// at n points (cosines of several bins, and the Nyquist bin on even n), transformed by
+    /// a direct DFT, multiplied by `shift_phase(n, k, s)` and transformed back, equals the
+    /// signal evaluated at j + s. Also the DC factor is exactly 1.
     #[test]
-    fn shift_phase_is_the_signed_frequency_ramp_with_a_real_nyquist_bin() {
-        let s = 0.37;
-        for n in [7usize, 8, 1080] {
-            assert_eq!(shift_phase(n, 0, s), Complex64::new(1.0, 0.0));
-            for k in 1..n {
-                let p = shift_phase(n, k, s);
-                if n % 2 == 0 && k == n / 2 {
-                    assert_eq!(p, Complex64::new((std::f64::consts::PI * s).cos(), 0.0));
-                    continue;
+    fn shift_phase_shifts_a_band_limited_signal() {
+        use std::f64::consts::PI;
+        for n in [7usize, 8, 12] {
+            let signal = |t: f64| {
+                let mut x = 0.3 + (2.0 * PI * t / n as f64 + 0.4).cos();
+                x += 0.5 * (2.0 * PI * 3.0 * t / n as f64 - 1.1).cos();
+                if n % 2 == 0 {
+                    // The Nyquist cosine; its band-limited real interpolant is cos(πt).
+                    x += 0.25 * (PI * t).cos();
                 }
-                assert!((p.norm() - 1.0).abs() < 1e-15, "n {n} k {k}");
-                let q = shift_phase(n, n - k, s);
-                assert!((p - q.conj()).norm() < 1e-12, "n {n} k {k}");
-                let kk = if k > n / 2 {
-                    k as f64 - n as f64
-                } else {
-                    k as f64
-                };
-                let want = 2.0 * std::f64::consts::PI * kk * s / n as f64;
-                assert!((p.arg() - want).abs() < 1e-12, "n {n} k {k}");
-            }
-            // A shift by n samples: every factor (Nyquist included, cos(nπ) = ±1 with n even) is 1.
-            for k in 0..n {
-                let p = shift_phase(n, k, n as f64);
-                assert!(
-                    (p - Complex64::new(1.0, 0.0)).norm() < 1e-9,
-                    "n {n} k {k}: {p}"
-                );
+                x
+            };
+            let dft: Vec<Complex64> = (0..n)
+                .map(|k| {
+                    (0..n)
+                        .map(|j| {
+                            signal(j as f64)
+                                * Complex64::from_polar(1.0, -2.0 * PI * (k * j) as f64 / n as f64)
+                        })
+                        .sum()
+                })
+                .collect();
+            for s in [0.37, -0.8, 2.25] {
+                assert_eq!(shift_phase(n, 0, s), Complex64::new(1.0, 0.0));
+                for j in 0..n {
+                    let x: Complex64 = (0..n)
+                        .map(|k| {
+                            dft[k]
+                                * shift_phase(n, k, s)
+                                * Complex64::from_polar(1.0, 2.0 * PI * (k * j) as f64 / n as f64)
+                        })
+                        .sum::<Complex64>()
+                        / n as f64;
+                    let want = signal(j as f64 + s);
+                    assert!(
+                        (x.re - want).abs() < 1e-12,
+                        "n {n}, s {s}, j {j}: {} vs {want}",
+                        x.re
+                    );
+                    assert!(
+                        x.im.abs() < 1e-12,
+                        "n {n}, s {s}, j {j}: imaginary {}",
+                        x.im
+                    );
+                }
             }
         }
     }
