@@ -445,15 +445,8 @@ impl SystemOtf {
     }
 
     /// Prepares evaluation on a frequency grid: the wavelength-independent product is
-    /// computed here, once.
-    ///
-    /// The product is taken component by component, in the order of
-    /// [`SystemOtf::components`] (as [`SystemOtf::evaluate`] takes it). The separable
-    /// components are evaluated from terms computed once per row and per column (detector
-    /// footprint: a product of two sincs; linear motion: the sinc of a sum; jitter and
-    /// Gaussian: the exponential of a sum), with the same operations as their pointwise
-    /// functions, so every value equals the pointwise product bit for bit; the others
-    /// sample by sample.
+    /// computed here, once, at every sample ([`SystemOtf::achromatic_sampler`]: equal to
+    /// the pointwise product bit for bit).
     pub fn on_grid(&self, grid: &FrequencyGrid) -> GridOtf<'_> {
         let sampler = self.achromatic_sampler(grid);
         let mut achromatic = Array2::<f64>::zeros((grid.fy.len(), grid.fx.len()));
