@@ -44,11 +44,12 @@ use crate::error::{Error, Result};
 use crate::io::{BandPlanes, CubeReader};
 use crate::radiometry;
 use crate::scene::{CubeMeta, Geometry, RadianceUnits};
-use crate::sensor::{Component, FrequencyGrid, Sensor, SystemOtf};
+use crate::sensor::{FrequencyGrid, Sensor, SystemOtf};
 use crate::spectrum::Spectrum;
 
 use fft::{FftFloat, FftPrecision, RealFft2, RowStores, SpectrumBuffer};
 use otf_table::{BandProfile, ChunkProfile, RadialTables, CHUNK_LANES};
+pub use padding::pad_width;
 use padding::{FramePad, PadMap};
 
 /// Bands read, row-transformed and accumulated together: the column pass then adds all of
@@ -62,8 +63,8 @@ pub const BANDS_PER_CHUNK: usize = CHUNK_LANES;
 /// wavelength grid (issue requirement: the grid must cover all but 0.1 %).
 pub const MAX_UNCOVERED_RESPONSE: f64 = 1e-3;
 
-/// Default tolerance on wrap-around: the summed |line-spread function| beyond the
-/// wrap-around distance, as a fraction of the total (see [`pad_width`]).
+/// Default tolerance on wrap-around: the largest |line-spread function| sample allowed at
+/// the wrap-around distance and beyond, as a fraction of the LSF's sum (see [`pad_width`]).
 pub const DEFAULT_WRAP_TOLERANCE: f64 = 1e-4;
 
 /// Electrons per unit input value for every band of a cube.
@@ -237,60 +238,6 @@ pub fn next_fast_len(n: usize) -> usize {
         }
         m += 1;
     }
-}
-
-/// Pad width (samples) along one axis so that wrap-around stays below `tolerance`.
-///
-/// The FFT is circular: a scene sample at one edge leaks into the opposite edge through
-/// the padding, at a distance of at least 2P samples (the pad, filled as in `PadMap`,
-/// mirrors the edge sample one sample outside it). The line-spread function (LSF) along the axis is
-/// computed numerically from the system OTF (1-D inverse FFT of OTF(f, 0) sampled on a long
-/// grid at the scene spacing) at the given wavelengths, normalised to unit sum, and P is
-/// the smallest width with `|lsf[n]| ≤ tolerance` for every |n| ≥ 2P: a one-sample-wide
-/// feature at one edge then changes the far edge by at most `tolerance` of its excess.
-/// Diffraction LSF tails fall only as 1/n², so the *summed* tail of a wide bright region
-/// converges slowly; that light is physically spread by the optics, and mirror padding
-/// supplies it from the nearest scene content rather than from the opposite edge.
-/// Components that are flat in frequency at high frequency (aerosol) are excluded: their
-/// scattered fraction spreads evenly over the padded frame by design (docs/design.md §5).
-pub fn pad_width(
-    otf: &SystemOtf,
-    spacing_rad: f64,
-    along_x: bool,
-    wavelengths_um: &[f64],
-    tolerance: f64,
-    max_pad: usize,
-) -> usize {
-    let m: usize = (8 * max_pad).next_power_of_two().max(1 << 12);
-    let fft = realfft::RealFftPlanner::<f64>::new().plan_fft_inverse(m);
-    let mut worst = 1usize;
-    for &lambda in wavelengths_um {
-        let r0 = otf.fried_r0_m(lambda);
-        let mut spec: Vec<Complex64> = (0..m / 2 + 1)
-            .into_par_iter()
-            .map(|u| {
-                let f = u as f64 / (m as f64 * spacing_rad);
-                let (fx, fy) = if along_x { (f, 0.0) } else { (0.0, f) };
-                let v = otf.product_where(fx, fy, lambda, r0, |c| c != Component::Aerosol);
-                Complex64::new(v, 0.0)
-            })
-            .collect();
-        spec[m / 2].im = 0.0;
-        let mut lsf = vec![0.0; m];
-        if fft.process(&mut spec, &mut lsf).is_err() {
-            return max_pad;
-        }
-        let norm = lsf.iter().sum::<f64>().abs().max(f64::MIN_POSITIVE);
-        // The largest |n| (folded: distance min(n, m − n)) whose sample exceeds the tolerance.
-        let far = (1..m)
-            .filter(|n| lsf[*n].abs() / norm > tolerance)
-            .map(|n| n.min(m - n))
-            .max()
-            .unwrap_or(0);
-        // Need 2P > far.
-        worst = worst.max((far / 2 + 1).min(max_pad));
-    }
-    worst
 }
 
 /// Timings and sizes of one imaging run.
