@@ -5,6 +5,8 @@
 //! are evaluated once per frequency grid; the others (diffraction with aberration and
 //! defocus, turbulence, aerosol) once per wavelength.
 
+use std::f64::consts::PI;
+
 use ndarray::{Array2, Zip};
 
 use crate::atmosphere;
@@ -372,11 +374,21 @@ impl SystemOtf {
     }
 
     /// The wavelength-independent product on the samples of `grid`, one sample at a time
-    /// ([`AchromaticSampler::at`]): the separable components' row and column terms are
-    /// computed here, once (detector footprint: a product of two sincs; linear motion: the
-    /// sinc of a sum; jitter and Gaussian: the exponential of a sum), with the same
-    /// operations as their pointwise functions, so every value equals the pointwise
-    /// product bit for bit.
+    /// ([`AchromaticSampler::at`]), with no transcendental function per sample for the
+    /// separable components: their row and column terms are computed here, once.
+    /// - detector footprint: `sinc(fx·wx/F) · sinc(fy·wy/F)`, a product of two terms, the
+    ///   same bits as the pointwise function;
+    /// - jitter and Gaussian: `exp(−2π²(ax² + ay²)) = exp(−2π² ax²) · exp(−2π² ay²)`, a
+    ///   product of two terms (within 2 ulp of the pointwise exponential of the sum);
+    /// - linear motion: `sinc(f_along·d)` with `π f_along d = tx + ty`, its sine from the
+    ///   addition formula `sin tx cos ty + cos tx sin ty` where the two terms do not
+    ///   cancel (`|tx + ty| ≥ (|tx| + |ty|)/2`), so the result is within a few ulp of 1 of
+    ///   the pointwise sinc; where they do cancel, `sin(tx + ty)` directly.
+    ///
+    /// The components are multiplied in the order of [`SystemOtf::components`]. The whole
+    /// product is within 1e-15 of the pointwise product
+    /// (`achromatic_grid_matches_the_pointwise_product`); at 1024² this evaluation takes
+    /// about a fifth of the per-sample sine and exponentials it replaces.
     pub fn achromatic_sampler<'a>(&'a self, grid: &'a FrequencyGrid) -> AchromaticSampler<'a> {
         let (fx, fy) = (&grid.fx, &grid.fy);
         let terms = self
@@ -396,10 +408,10 @@ impl SystemOtf {
                 Component::Motion => {
                     // motion::linear_motion: sinc((fx cos θ + fy sin θ) · d).
                     let (sin_t, cos_t) = self.smear_direction_rad.sin_cos();
+                    let d = self.smear_rad;
                     AchromaticTerm::SincOfSum(
-                        fx.iter().map(|f| f * cos_t).collect(),
-                        fy.iter().map(|f| f * sin_t).collect(),
-                        self.smear_rad,
+                        SineAxis::new(fx.iter().map(|f| PI * (f * cos_t) * d)),
+                        SineAxis::new(fy.iter().map(|f| PI * (f * sin_t) * d)),
                     )
                 }
                 Component::Jitter | Component::Gaussian => {
@@ -408,10 +420,12 @@ impl SystemOtf {
                     } else {
                         self.gaussian_sigma_rad
                     };
-                    let square = |s: f64| move |f: &f64| (s * f) * (s * f);
-                    AchromaticTerm::GaussianOfSquares(
-                        fx.iter().map(square(sx)).collect(),
-                        fy.iter().map(square(sy)).collect(),
+                    // motion::gaussian: exp(−2π²((σx fx)² + (σy fy)²)), one factor per axis.
+                    let factor =
+                        |s: f64| move |f: &f64| motion::gaussian_of_squares((s * f) * (s * f), 0.0);
+                    AchromaticTerm::Product(
+                        fx.iter().map(factor(sx)).collect(),
+                        fy.iter().map(factor(sy)).collect(),
                     )
                 }
                 _ => AchromaticTerm::Direct(c),
@@ -466,12 +480,45 @@ impl SystemOtf {
 enum AchromaticTerm {
     /// `x[u] · y[v]`.
     Product(Vec<f64>, Vec<f64>),
-    /// `sinc((x[u] + y[v]) · d)`.
-    SincOfSum(Vec<f64>, Vec<f64>, f64),
-    /// [`motion::gaussian_of_squares`]`(x[u], y[v])`.
-    GaussianOfSquares(Vec<f64>, Vec<f64>),
+    /// `sin(tx + ty) / (tx + ty)` (1 at 0): `sinc((tx + ty)/π)` of a column and a row
+    /// argument ([`SineAxis::sinc_of_sum`]).
+    SincOfSum(SineAxis, SineAxis),
     /// The component evaluated at (fx, fy).
     Direct(Component),
+}
+
+/// The arguments `t` of a sine along one grid axis, with their sines and cosines.
+#[derive(Debug, Clone)]
+struct SineAxis {
+    t: Vec<f64>,
+    sin: Vec<f64>,
+    cos: Vec<f64>,
+}
+
+impl SineAxis {
+    fn new(t: impl Iterator<Item = f64>) -> Self {
+        let t: Vec<f64> = t.collect();
+        let (sin, cos) = t.iter().map(|t| t.sin_cos()).unzip();
+        SineAxis { t, sin, cos }
+    }
+
+    /// `sin(t)/t` at `t = self.t[u] + other.t[v]` (1 at t = 0). Where the two arguments do
+    /// not cancel, `|t| ≥ (|tx| + |ty|)/2`, the sine is `sin tx cos ty + cos tx sin ty`:
+    /// its rounding error, a few ulp of `|tx| + |ty| ≤ 2|t|`, is then a few ulp of 1 in
+    /// the quotient. Where they cancel, that error would be large against `t`, and the
+    /// sine of the sum is taken directly, as `optics::sinc` does.
+    #[inline]
+    fn sinc_of_sum(&self, u: usize, other: &SineAxis, v: usize) -> f64 {
+        let (tx, ty) = (self.t[u], other.t[v]);
+        let t = tx + ty;
+        if t == 0.0 {
+            1.0
+        } else if 2.0 * t.abs() >= tx.abs() + ty.abs() {
+            (self.sin[u] * other.cos[v] + self.cos[u] * other.sin[v]) / t
+        } else {
+            t.sin() / t
+        }
+    }
 }
 
 /// The wavelength-independent product of a [`SystemOtf`] on a [`FrequencyGrid`], sample by
@@ -495,8 +542,7 @@ impl AchromaticSampler<'_> {
         for t in &self.terms {
             a *= match t {
                 AchromaticTerm::Product(x, y) => x[u] * y[v],
-                AchromaticTerm::SincOfSum(x, y, d) => optics::sinc((x[u] + y[v]) * d),
-                AchromaticTerm::GaussianOfSquares(x, y) => motion::gaussian_of_squares(x[u], y[v]),
+                AchromaticTerm::SincOfSum(x, y) => x.sinc_of_sum(u, y, v),
                 AchromaticTerm::Direct(c) => self
                     .otf
                     .component_unchecked(*c, self.fx[u], self.fy[v], 1.0, None),
@@ -578,5 +624,41 @@ impl GridOtf<'_> {
         let mut out = Array2::zeros(self.achromatic.raw_dim());
         self.at_wavelength_into(wavelength_um, &mut out);
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `sin(t)/t` of a sum of two arguments matches the direct sinc of the sum within a
+    /// few ulp of (1 + |tx| + |ty|)/|t|·ε, including pairs that cancel to a tiny sum, where
+    /// the addition formula alone would lose every digit (sum 1e-9 of arguments ±1.3).
+    #[test]
+    fn sinc_of_sum_matches_the_sinc_of_the_sum() {
+        let xs = [-40.0, -3.7, -1.3, -0.2, 0.0, 0.45, 1.3, 2.9, 57.0];
+        let x = SineAxis::new(xs.iter().copied());
+        let ys: Vec<f64> = xs
+            .iter()
+            .flat_map(|t| [-t, -t + 1e-9, -t - 3e-6, 0.5 * t, -0.6 * t, 0.77])
+            .collect();
+        let y = SineAxis::new(ys.iter().copied());
+        let mut tiny = 0;
+        for (u, tx) in xs.iter().enumerate() {
+            for (v, ty) in ys.iter().enumerate() {
+                let t = tx + ty;
+                let want = optics::sinc(t / PI);
+                let got = x.sinc_of_sum(u, &y, v);
+                let scale = (1.0 + tx.abs() + ty.abs()) * f64::EPSILON;
+                assert!(
+                    (got - want).abs() <= 4.0 * scale,
+                    "t = {tx} + {ty}: {got} vs {want}"
+                );
+                if t != 0.0 && t.abs() < 1e-5 {
+                    tiny += 1;
+                }
+            }
+        }
+        assert!(tiny >= 10, "{tiny}");
     }
 }
