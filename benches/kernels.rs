@@ -12,7 +12,9 @@ use ndarray::Array2;
 use num_complex::{Complex, Complex64};
 
 use eoir::imaging::fft::{FftFloat, RealFft2, SpectrumBuffer};
-use eoir::imaging::{accumulate_chunk, Imager, BANDS_PER_CHUNK, DEFAULT_WRAP_TOLERANCE};
+use eoir::imaging::{
+    accumulate_chunk, ColumnWorkspace, Imager, BANDS_PER_CHUNK, DEFAULT_WRAP_TOLERANCE,
+};
 use eoir::scene::{CubeMeta, Geometry, RadianceUnits};
 use eoir::sensor::{Sensor, SensorConfig};
 
@@ -75,6 +77,7 @@ fn kernels(c: &mut Criterion) {
     let wavelengths: Vec<f64> = (0..BANDS_PER_CHUNK).map(|i| 1.0 + 0.1 * i as f64).collect();
     let profile = im.chunk_profile(&wavelengths);
     let mut acc_t = vec![Complex64::new(0.0, 0.0); ny * hc];
+    let workspace = ColumnWorkspace::<f32>::new();
     c.bench_function(
         &format!("column FFTs + OTF profile accumulate, {BANDS_PER_CHUNK} bands f32 {ny}x{nx}"),
         |b| {
@@ -86,6 +89,7 @@ fn kernels(c: &mut Criterion) {
                     &profile,
                     im.radial_grid(),
                     &mut acc_t,
+                    &workspace,
                 );
                 black_box(&acc_t);
             })

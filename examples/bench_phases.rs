@@ -21,7 +21,9 @@ use num_complex::{Complex, Complex64};
 use rayon::prelude::*;
 
 use eoir::imaging::fft::{RealFft2, SpectrumBuffer};
-use eoir::imaging::{accumulate_chunk, Imager, BANDS_PER_CHUNK, DEFAULT_WRAP_TOLERANCE};
+use eoir::imaging::{
+    accumulate_chunk, ColumnWorkspace, Imager, BANDS_PER_CHUNK, DEFAULT_WRAP_TOLERANCE,
+};
 use eoir::sensor::Sensor;
 
 const CHUNKS: usize = 8;
@@ -73,6 +75,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut scratch = Vec::new();
     let weights = vec![1.0; BANDS_PER_CHUNK];
     let (mut rows_t, mut cols_t, mut bound_t) = (Vec::new(), Vec::new(), Vec::new());
+    let workspace = ColumnWorkspace::new();
     for round in 0..=rounds {
         for (ci, chunk) in planes.chunks(BANDS_PER_CHUNK).enumerate() {
             let t0 = Instant::now();
@@ -89,6 +92,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 &profile,
                 im.radial_grid(),
                 &mut acc,
+                &workspace,
             );
             let t2 = Instant::now();
             for _ in 0..BANDS_PER_CHUNK {

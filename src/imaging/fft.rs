@@ -430,7 +430,12 @@ impl<T: FftFloat> RealFft2<T> {
     /// buffer: the region is transformed where it lies).
     pub fn column_region_scratch(&self) -> Vec<Complex<T>> {
         let zero = Complex::new(T::zero(), T::zero());
-        vec![zero; self.col_forward.get_inplace_scratch_len()]
+        vec![zero; self.column_region_scratch_len()]
+    }
+
+    /// Length of [`RealFft2::column_region_scratch`].
+    pub fn column_region_scratch_len(&self) -> usize {
+        self.col_forward.get_inplace_scratch_len()
     }
 
     /// Column pass of one block: gathers columns `u0 .. u0+n` (n ≤ [`BLOCK_COLS`]) of the

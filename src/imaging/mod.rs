@@ -24,7 +24,7 @@
 mod accumulate;
 pub mod fft;
 pub mod otf_table;
-pub use accumulate::{accumulate_chunk, RadialGrid};
+pub use accumulate::{accumulate_chunk, ColumnWorkspace, RadialGrid};
 pub use sampling::{AxisSampling, Sampling, COARSER_TOLERANCE};
 mod padding;
 mod r2c;
@@ -450,6 +450,8 @@ impl Imager {
         };
         let active = self.weights.active_bands();
         let mut rowspecs: Vec<SpectrumBuffer<T>> = Vec::new();
+        // The column pass's per-worker buffers, kept from chunk to chunk.
+        let workspace = ColumnWorkspace::<T>::new();
         let chunks: Vec<&[usize]> = active.chunks(BANDS_PER_CHUNK).collect();
         let t0 = Instant::now();
         let mut next = match chunks.first() {
@@ -482,6 +484,7 @@ impl Imager {
                 let (rs, acc, fft_s, otf_s) = (&mut rowspecs, &mut acc_t, &mut fft_s, &mut otf_s);
                 let unphysical = &mut unphysical;
                 let kept = &mut kept;
+                let workspace = &workspace;
                 scope.spawn(move |_| {
                     let t1 = Instant::now();
                     let wavelengths: Vec<f64> = chunk
@@ -535,6 +538,7 @@ impl Imager {
                                 &profile,
                                 &self.radial,
                                 acc,
+                                workspace,
                             )
                         },
                     );
