@@ -3,14 +3,13 @@
 //! and the spectral weights, added to the frame's f64 accumulator while the block is in
 //! cache (see [`accumulate_chunk`]), and the frequency samples it reads ([`RadialGrid`]).
 
-use std::sync::Mutex;
-
 use ndarray::Array2;
 use num_complex::Complex64;
 use rayon::prelude::*;
 
 use super::fft::{FftFloat, RealFft2, BLOCK_COLS};
 use super::otf_table::{ChunkProfile, CHUNK_LANES};
+use super::workspace::ColumnWorkspace;
 #[cfg(doc)]
 use super::Imager;
 use crate::memory::vec_on_huge_pages;
@@ -217,102 +216,6 @@ pub fn accumulate_chunk<T: FftFloat, R: AsRef<[num_complex::Complex<T>]>>(
                 }
             },
         );
-}
-
-/// The per-worker buffers of [`accumulate_chunk`] (one block of every band of a chunk,
-/// and the column plan's scratch), kept from one chunk to the next instead of freed.
-///
-/// Each parallel job of the column pass leases a set and returns it when done, so a frame
-/// allocates about one set per worker, once. Freed instead, 553 KB per set at 1024², they
-/// went back to the C allocator after every chunk, and whether it kept their pages or
-/// returned them to the kernel depended on its heuristics (its mmap and trim thresholds,
-/// which any earlier allocation of the run moves): returned, the next chunk faulted them
-/// in afresh, 4 000 extra page faults and 6–9 % more column-pass time per 1024² × 128
-/// run. The contents left in a set are never read: every use copies its regions in first.
-pub struct ColumnWorkspace<T: FftFloat> {
-    free: Mutex<Vec<WorkerBuffers<T>>>,
-}
-
-/// One worker's buffers ([`ColumnWorkspace`]).
-struct WorkerBuffers<T> {
-    blocks: Vec<num_complex::Complex<T>>,
-    scratch: Vec<num_complex::Complex<T>>,
-}
-
-impl<T: FftFloat> Default for ColumnWorkspace<T> {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl<T: FftFloat> ColumnWorkspace<T> {
-    /// An empty workspace: sets are allocated as the column pass first needs them.
-    pub fn new() -> Self {
-        ColumnWorkspace {
-            free: Mutex::new(Vec::new()),
-        }
-    }
-
-    /// Sets allocated so far (all returned between column passes).
-    pub fn sets(&self) -> usize {
-        self.free.lock().unwrap_or_else(|e| e.into_inner()).len()
-    }
-
-    /// A set with room for `len` block samples and `fft`'s column scratch: a returned
-    /// one if there is one, grown if it is too small, otherwise a new one.
-    fn lease(&self, len: usize, fft: &RealFft2<T>) -> Lease<'_, T> {
-        let zero = num_complex::Complex::new(T::zero(), T::zero());
-        let reused = self.free.lock().unwrap_or_else(|e| e.into_inner()).pop();
-        let mut set = reused.unwrap_or_else(|| WorkerBuffers {
-            blocks: Vec::new(),
-            scratch: Vec::new(),
-        });
-        let scratch_len = fft.column_region_scratch_len();
-        if set.blocks.len() < len {
-            set.blocks.resize(len, zero);
-        }
-        if set.scratch.len() < scratch_len {
-            set.scratch.resize(scratch_len, zero);
-        }
-        Lease {
-            workspace: self,
-            set: Some(set),
-        }
-    }
-}
-
-/// A set of [`ColumnWorkspace`] buffers in use by one job; returned on drop.
-struct Lease<'a, T: FftFloat> {
-    workspace: &'a ColumnWorkspace<T>,
-    set: Option<WorkerBuffers<T>>,
-}
-
-impl<T: FftFloat> Lease<'_, T> {
-    /// The block buffer and the scratch.
-    fn buffers(
-        &mut self,
-    ) -> (
-        &mut Vec<num_complex::Complex<T>>,
-        &mut Vec<num_complex::Complex<T>>,
-    ) {
-        let set = self
-            .set
-            .as_mut()
-            .expect("a lease holds its set until dropped");
-        (&mut set.blocks, &mut set.scratch)
-    }
-}
-
-impl<T: FftFloat> Drop for Lease<'_, T> {
-    fn drop(&mut self) {
-        if let Some(set) = self.set.take() {
-            self.workspace
-                .free
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .push(set);
-        }
-    }
 }
 
 /// The frequency samples of one block of whole columns (see [`RadialGrid`]): the rows of a

@@ -24,13 +24,16 @@
 mod accumulate;
 pub mod fft;
 pub mod otf_table;
-pub use accumulate::{accumulate_chunk, ColumnWorkspace, RadialGrid};
+pub use accumulate::{accumulate_chunk, RadialGrid};
 pub use sampling::{AxisSampling, Sampling, COARSER_TOLERANCE};
 mod padding;
 mod r2c;
 mod sampling;
 use sampling::shift_phase;
 mod transpose;
+mod workspace;
+pub use workspace::ColumnWorkspace;
+use workspace::FramePool;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -279,6 +282,8 @@ pub struct Imager {
     /// each column, the achromatic product per sample in f32), in the accumulator's
     /// transposed layout `[fx][fy]`: computed once per frame size.
     radial: RadialGrid,
+    /// Frame buffers kept between frames (accumulator, row spectra, column workspace).
+    frames: FramePool,
 }
 
 /// A chunk's row spectra larger than this are written with non-temporal stores
@@ -368,6 +373,7 @@ impl Imager {
             pad,
             tables,
             radial,
+            frames: FramePool::default(),
         })
     }
 
@@ -410,6 +416,13 @@ impl Imager {
         self.precision
     }
 
+    /// Sets of frame buffers (accumulator, row spectra, column workspace) this imager
+    /// keeps for its next frames: one per frame imaged at the same time so far, held
+    /// until the imager is dropped.
+    pub fn kept_frame_buffers(&self) -> usize {
+        self.frames.kept()
+    }
+
     /// Images frame `frame` of `reader`: returns the mean (noise-free) photo-electrons per
     /// detector pixel, `[rows, cols]`. `progress(bands done, bands)` is called after each
     /// chunk of [`BANDS_PER_CHUNK`] bands.
@@ -442,16 +455,16 @@ impl Imager {
     ) -> Result<(Array2<f64>, ImagingStats)> {
         let (ny, nx) = (self.sampling.y.padded_len, self.sampling.x.padded_len);
         let hc = nx / 2 + 1;
-        let mut acc_t = crate::memory::vec_on_huge_pages(hc * ny, Complex64::new(0.0, 0.0));
+        // Kept from an earlier frame of this imager if there was one (accumulator zeroed).
+        let buffers = self.frames.lease::<T>(hc * ny);
+        let (mut acc_t, mut rowspecs, workspace) =
+            (buffers.acc_t, buffers.rowspecs, buffers.columns);
         let mut stats = ImagingStats {
             padded_shape: (ny, nx),
             precision: self.precision,
             ..Default::default()
         };
         let active = self.weights.active_bands();
-        let mut rowspecs: Vec<SpectrumBuffer<T>> = Vec::new();
-        // The column pass's per-worker buffers, kept from chunk to chunk.
-        let workspace = ColumnWorkspace::<T>::new();
         let chunks: Vec<&[usize]> = active.chunks(BANDS_PER_CHUNK).collect();
         let t0 = Instant::now();
         let mut next = match chunks.first() {
@@ -573,10 +586,14 @@ impl Imager {
             stats.bands_used += chunk.len();
             progress(stats.bands_used, active.len());
         }
-        drop(rowspecs);
         let t0 = Instant::now();
         let e = self.detector_image_transposed(&mut acc_t);
         stats.inverse_s = t0.elapsed().as_secs_f64();
+        self.frames.give_back(workspace::FrameBuffers {
+            acc_t,
+            rowspecs,
+            columns: workspace,
+        });
         Ok((e, stats))
     }
 

@@ -7,6 +7,7 @@ use ndarray::{Array2, Array3};
 use num_complex::Complex64;
 use rustfft::FftPlanner;
 
+use eoir::imaging::fft::FftPrecision;
 use eoir::imaging::{Imager, SpectralWeights, DEFAULT_WRAP_TOLERANCE};
 use eoir::io::MemoryCube;
 use eoir::radiometry::planck_spectral_radiance;
@@ -366,5 +367,56 @@ fn detector_image_in_either_layout_and_of_a_constant() {
                 );
             }
         }
+    }
+}
+
+/// Frames imaged one after another by one imager reuse its frame buffers (one set kept,
+/// the accumulator zeroed in between) and give, bit for bit, what a fresh imager gives for
+/// each frame; an f64 frame between f32 ones gets its own set and its own values.
+#[test]
+fn an_imager_reuses_its_frame_buffers_without_carrying_values_over() {
+    let s = sensor(12, 16, &["jitter.sigma_rad=4e-5"]);
+    let wl = grid(4.45, 5.3, 40);
+    let (rows, cols) = (24, 32);
+    let ifov = s.ifov_rad() / 2.0;
+    let scene = |seed: f32| {
+        Array3::from_shape_fn((wl.len(), rows, cols), |(b, r, c)| {
+            seed * (1.0 + ((r * 7 + c * 3 + b) % 11) as f32)
+        })
+    };
+    let fresh = |seed: f32, precision: FftPrecision| {
+        let c = cube(scene(seed), wl.clone(), ifov);
+        let g = c.meta.geometry.unwrap();
+        let imager = Imager::new(&s, &c.meta, &g, 1e-4)
+            .unwrap()
+            .with_precision(precision);
+        let mut reader = MemoryCube::new(c);
+        imager.mean_electrons(&mut reader, 0, |_, _| {}).unwrap().0
+    };
+    let g = Geometry::from_ifov(ifov, ifov, rows, cols);
+    let meta = cube(scene(1.0), wl.clone(), ifov).meta;
+    let imager = Imager::new(&s, &meta, &g, 1e-4).unwrap();
+    assert_eq!(imager.kept_frame_buffers(), 0);
+    let steps = [
+        (1.0, FftPrecision::F32, 1),
+        (7.0, FftPrecision::F32, 1),
+        (3.0, FftPrecision::F64, 2),
+        (5.0, FftPrecision::F32, 2),
+    ];
+    let mut imager = imager;
+    for (seed, precision, kept) in steps {
+        imager = imager.with_precision(precision);
+        let mut reader = MemoryCube::new(cube(scene(seed), wl.clone(), ifov));
+        let (e, _) = imager.mean_electrons(&mut reader, 0, |_, _| {}).unwrap();
+        let want = fresh(seed, precision);
+        assert!(
+            e.iter().zip(&want).all(|(a, b)| a.to_bits() == b.to_bits()),
+            "seed {seed}, {precision:?}"
+        );
+        assert_eq!(
+            imager.kept_frame_buffers(),
+            kept,
+            "seed {seed}, {precision:?}"
+        );
     }
 }

@@ -1,0 +1,181 @@
+//! Buffers the engine needs again and again, kept instead of freed and allocated anew.
+//!
+//! Whether the C allocator keeps a freed buffer's pages or hands them back to the kernel
+//! depends on its heuristics (glibc's mmap and trim thresholds, which every earlier
+//! allocation of the process moves). Handed back, the next allocation faults its pages
+//! in afresh, which on a virtual machine that returns freed memory to its host costs a
+//! host fault per page too (docs/design.md, "Memory pages"). The engine's repeated
+//! buffers are therefore kept explicitly: the column pass's per-worker block buffers for
+//! the chunks of a frame ([`ColumnWorkspace`]), and a frame's accumulator, row spectra and
+//! column workspace for the frames of a sequence ([`FramePool`]).
+
+use std::any::Any;
+use std::sync::Mutex;
+
+use num_complex::{Complex, Complex64};
+use rayon::prelude::*;
+
+use super::fft::{FftFloat, RealFft2, SpectrumBuffer};
+use crate::memory::vec_on_huge_pages;
+
+/// The per-worker buffers of [`accumulate_chunk`] (one block of every band of a chunk,
+/// and the column plan's scratch), kept from one chunk to the next instead of freed.
+///
+/// Each parallel job of the column pass leases a set and returns it when done, so a frame
+/// allocates about one set per worker, once. Freed instead, 553 KB per set at 1024², they
+/// went back to the C allocator after every chunk, and whether it kept their pages or
+/// returned them to the kernel depended on its heuristics (its mmap and trim thresholds,
+/// which any earlier allocation of the run moves): returned, the next chunk faulted them
+/// in afresh, 4 000 extra page faults and 6–9 % more column-pass time per 1024² × 128
+/// run. The contents left in a set are never read: every use copies its regions in first.
+pub struct ColumnWorkspace<T: FftFloat> {
+    free: Mutex<Vec<WorkerBuffers<T>>>,
+}
+
+/// One worker's buffers ([`ColumnWorkspace`]).
+struct WorkerBuffers<T> {
+    blocks: Vec<Complex<T>>,
+    scratch: Vec<Complex<T>>,
+}
+
+impl<T: FftFloat> Default for ColumnWorkspace<T> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: FftFloat> ColumnWorkspace<T> {
+    /// An empty workspace: sets are allocated as the column pass first needs them.
+    pub fn new() -> Self {
+        ColumnWorkspace {
+            free: Mutex::new(Vec::new()),
+        }
+    }
+
+    /// Sets allocated so far (all returned between column passes).
+    pub fn sets(&self) -> usize {
+        self.free.lock().unwrap_or_else(|e| e.into_inner()).len()
+    }
+
+    /// A set with room for `len` block samples and `fft`'s column scratch: a returned
+    /// one if there is one, grown if it is too small, otherwise a new one.
+    pub(super) fn lease(&self, len: usize, fft: &RealFft2<T>) -> Lease<'_, T> {
+        let zero = num_complex::Complex::new(T::zero(), T::zero());
+        let reused = self.free.lock().unwrap_or_else(|e| e.into_inner()).pop();
+        let mut set = reused.unwrap_or_else(|| WorkerBuffers {
+            blocks: Vec::new(),
+            scratch: Vec::new(),
+        });
+        let scratch_len = fft.column_region_scratch_len();
+        if set.blocks.len() < len {
+            set.blocks.resize(len, zero);
+        }
+        if set.scratch.len() < scratch_len {
+            set.scratch.resize(scratch_len, zero);
+        }
+        Lease {
+            workspace: self,
+            set: Some(set),
+        }
+    }
+}
+
+/// A set of [`ColumnWorkspace`] buffers in use by one job; returned on drop.
+pub(super) struct Lease<'a, T: FftFloat> {
+    workspace: &'a ColumnWorkspace<T>,
+    set: Option<WorkerBuffers<T>>,
+}
+
+impl<T: FftFloat> Lease<'_, T> {
+    /// The block buffer and the scratch.
+    pub(super) fn buffers(&mut self) -> (&mut Vec<Complex<T>>, &mut Vec<Complex<T>>) {
+        let set = self
+            .set
+            .as_mut()
+            .expect("a lease holds its set until dropped");
+        (&mut set.blocks, &mut set.scratch)
+    }
+}
+
+impl<T: FftFloat> Drop for Lease<'_, T> {
+    fn drop(&mut self) {
+        if let Some(set) = self.set.take() {
+            self.workspace
+                .free
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .push(set);
+        }
+    }
+}
+
+/// One frame's working buffers: the f64 accumulator (`[fx][fy]`), the row spectra of a
+/// chunk and the column pass's workspace.
+pub(super) struct FrameBuffers<T: FftFloat> {
+    /// The accumulator, all zeros when leased.
+    pub acc_t: Vec<Complex64>,
+    /// Row spectra, one per band of a chunk (added as needed; their contents are
+    /// overwritten by every row pass).
+    pub rowspecs: Vec<SpectrumBuffer<T>>,
+    /// The column pass's per-worker buffers.
+    pub columns: ColumnWorkspace<T>,
+}
+
+/// Frame buffers kept by an [`super::Imager`] between the frames it images (one set per
+/// frame in flight), so that a sequence allocates them once instead of once per frame.
+/// A returned accumulator is zeroed on its next lease (in parallel, 9 MB at 1024²: well
+/// under a millisecond, against a fault per page for fresh memory).
+#[derive(Default)]
+pub(super) struct FramePool {
+    free: Mutex<Vec<Box<dyn Any + Send>>>,
+}
+
+impl std::fmt::Debug for FramePool {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let kept = self.free.lock().map_or(0, |v| v.len());
+        write!(f, "FramePool {{ kept: {kept} }}")
+    }
+}
+
+impl FramePool {
+    /// Buffers for a frame whose accumulator holds `acc_len` samples, in precision `T`: a
+    /// kept set (accumulator zeroed) if there is one, otherwise a new one.
+    pub fn lease<T: FftFloat>(&self, acc_len: usize) -> FrameBuffers<T> {
+        let kept = {
+            let mut free = self.free.lock().unwrap_or_else(|e| e.into_inner());
+            let at = free.iter().position(|b| {
+                b.downcast_ref::<FrameBuffers<T>>()
+                    .is_some_and(|f| f.acc_t.len() == acc_len)
+            });
+            at.map(|i| free.swap_remove(i))
+        };
+        match kept.and_then(|b| b.downcast::<FrameBuffers<T>>().ok()) {
+            Some(mut buffers) => {
+                let zero = Complex64::new(0.0, 0.0);
+                buffers
+                    .acc_t
+                    .par_chunks_mut(1 << 16)
+                    .for_each(|c| c.fill(zero));
+                *buffers
+            }
+            None => FrameBuffers {
+                acc_t: vec_on_huge_pages(acc_len, Complex64::new(0.0, 0.0)),
+                rowspecs: Vec::new(),
+                columns: ColumnWorkspace::new(),
+            },
+        }
+    }
+
+    /// Keeps `buffers` for a later frame.
+    pub fn give_back<T: FftFloat>(&self, buffers: FrameBuffers<T>) {
+        self.free
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(Box::new(buffers));
+    }
+
+    /// Frame buffer sets kept now.
+    pub fn kept(&self) -> usize {
+        self.free.lock().map_or(0, |v| v.len())
+    }
+}
