@@ -423,6 +423,14 @@ impl Imager {
         self.frames.kept()
     }
 
+    /// Frees the frame buffers kept for later frames (the next frame allocates afresh).
+    /// The pipeline calls it once a run's frames are imaged, so that the stages after
+    /// imaging (detector, calibration, products) run without the engine's 30-odd MB
+    /// (at 1024²) held, as before the buffers were kept.
+    pub fn release_frame_buffers(&self) {
+        self.frames.clear();
+    }
+
     /// Images frame `frame` of `reader`: returns the mean (noise-free) photo-electrons per
     /// detector pixel, `[rows, cols]`. `progress(bands done, bands)` is called after each
     /// chunk of [`BANDS_PER_CHUNK`] bands.

@@ -166,6 +166,11 @@ impl FramePool {
         }
     }
 
+    /// Drops every kept set.
+    pub fn clear(&self) {
+        self.free.lock().unwrap_or_else(|e| e.into_inner()).clear();
+    }
+
     /// Keeps `buffers` for a later frame.
     pub fn give_back<T: FftFloat>(&self, buffers: FrameBuffers<T>) {
         self.free

@@ -49,6 +49,14 @@ impl ImagingStage {
         })
     }
 
+    /// Frees the frame buffers the imagers keep between frames
+    /// ([`Imager::release_frame_buffers`]): for when the run's last frame is imaged.
+    pub fn release_frame_buffers(&self) {
+        for imager in &self.imagers {
+            imager.release_frame_buffers();
+        }
+    }
+
     /// Bands with a non-zero weight, summed over the colour channels (the progress total
     /// of one frame).
     pub fn bands_used(&self) -> usize {

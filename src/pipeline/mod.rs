@@ -295,6 +295,8 @@ pub fn run(
         run_bytes,
     };
     let done = frames::image_and_expose(&job, reader, &mut progress)?;
+    // Every frame is imaged: the engine's kept frame buffers are not needed any more.
+    imaging.release_frame_buffers();
     let (mut frames, exposure) = (done.frames, done.exposure);
     let mut read_warnings = reader.warnings();
     read_warnings.extend(done.reader_warnings);

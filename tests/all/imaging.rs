@@ -372,7 +372,8 @@ fn detector_image_in_either_layout_and_of_a_constant() {
 
 /// Frames imaged one after another by one imager reuse its frame buffers (one set kept,
 /// the accumulator zeroed in between) and give, bit for bit, what a fresh imager gives for
-/// each frame; an f64 frame between f32 ones gets its own set and its own values.
+/// each frame; an f64 frame between f32 ones gets its own set and its own values; once
+/// released, none is kept.
 #[test]
 fn an_imager_reuses_its_frame_buffers_without_carrying_values_over() {
     let s = sensor(12, 16, &["jitter.sigma_rad=4e-5"]);
@@ -419,4 +420,6 @@ fn an_imager_reuses_its_frame_buffers_without_carrying_values_over() {
             "seed {seed}, {precision:?}"
         );
     }
+    imager.release_frame_buffers();
+    assert_eq!(imager.kept_frame_buffers(), 0);
 }
