@@ -18,7 +18,7 @@ use rayon::prelude::*;
 use super::fft::{FftFloat, RealFft2, SpectrumBuffer};
 use crate::memory::vec_on_huge_pages;
 
-/// The per-worker buffers of [`accumulate_chunk`] (one block of every band of a chunk,
+/// The per-worker buffers of [`super::accumulate_chunk`] (one block of every band of a chunk,
 /// and the column plan's scratch), kept from one chunk to the next instead of freed.
 ///
 /// Each parallel job of the column pass leases a set and returns it when done, so a frame
