@@ -418,7 +418,7 @@ impl Imager {
 
     /// Sets of frame buffers (accumulator, row spectra, column workspace) this imager
     /// keeps for its next frames: one per frame imaged at the same time so far, held
-    /// until the imager is dropped.
+    /// until [`Imager::release_frame_buffers`] or until the imager is dropped.
     pub fn kept_frame_buffers(&self) -> usize {
         self.frames.kept()
     }
