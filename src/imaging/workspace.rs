@@ -26,7 +26,7 @@ use crate::memory::vec_on_huge_pages;
 /// went back to the C allocator after every chunk, and whether it kept their pages or
 /// returned them to the kernel depended on its heuristics (its mmap and trim thresholds,
 /// which any earlier allocation of the run moves): returned, the next chunk faulted them
-/// in afresh, 4 000 extra page faults and 6–9 % more column-pass time per 1024² × 128
+/// in afresh, 4 000 extra page faults and 4–10 % more column-pass time per 1024² × 128
 /// run. The contents left in a set are never read: every use copies its regions in first.
 pub struct ColumnWorkspace<T: FftFloat> {
     free: Mutex<Vec<WorkerBuffers<T>>>,
