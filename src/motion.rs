@@ -64,12 +64,5 @@ pub fn jitter(fx_cy_per_rad: f64, fy_cy_per_rad: f64, sigma_rad: f64) -> f64 {
 pub fn gaussian(fx_cy_per_rad: f64, fy_cy_per_rad: f64, sigma_x_rad: f64, sigma_y_rad: f64) -> f64 {
     let ax = sigma_x_rad * fx_cy_per_rad;
     let ay = sigma_y_rad * fy_cy_per_rad;
-    gaussian_of_squares(ax * ax, ay * ay)
-}
-
-/// [`gaussian`] from its two squared axis terms `ax² = (σx fx)²` and `ay² = (σy fy)²`:
-/// `exp(−2π²(ax² + ay²))`. Lets a grid evaluation compute the axis terms once per row and
-/// column (the same operations, so the same values bit for bit).
-pub fn gaussian_of_squares(ax2: f64, ay2: f64) -> f64 {
-    (-2.0 * PI * PI * (ax2 + ay2)).exp()
+    (-2.0 * PI * PI * (ax * ax + ay * ay)).exp()
 }

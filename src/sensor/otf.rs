@@ -420,12 +420,14 @@ impl SystemOtf {
                     } else {
                         self.gaussian_sigma_rad
                     };
-                    // motion::gaussian: exp(−2π²((σx fx)² + (σy fy)²)), one factor per axis.
-                    let factor =
-                        |s: f64| move |f: &f64| motion::gaussian_of_squares((s * f) * (s * f), 0.0);
+                    // motion::gaussian is exp(−2π²((σx fx)² + (σy fy)²)): one factor per axis.
                     AchromaticTerm::Product(
-                        fx.iter().map(factor(sx)).collect(),
-                        fy.iter().map(factor(sy)).collect(),
+                        fx.iter()
+                            .map(|f| motion::gaussian(*f, 0.0, sx, sy))
+                            .collect(),
+                        fy.iter()
+                            .map(|f| motion::gaussian(0.0, *f, sx, sy))
+                            .collect(),
                     )
                 }
                 _ => AchromaticTerm::Direct(c),
@@ -459,8 +461,8 @@ impl SystemOtf {
     }
 
     /// Prepares evaluation on a frequency grid: the wavelength-independent product is
-    /// computed here, once, at every sample ([`SystemOtf::achromatic_sampler`]: equal to
-    /// the pointwise product bit for bit).
+    /// computed here, once, at every sample ([`SystemOtf::achromatic_sampler`]: within
+    /// 1e-15·(1 + |t|) of the pointwise product, t the smear's sine argument).
     pub fn on_grid(&self, grid: &FrequencyGrid) -> GridOtf<'_> {
         let sampler = self.achromatic_sampler(grid);
         let mut achromatic = Array2::<f64>::zeros((grid.fy.len(), grid.fx.len()));
