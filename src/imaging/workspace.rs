@@ -60,7 +60,7 @@ impl<T: FftFloat> ColumnWorkspace<T> {
     /// A set with room for `len` block samples and `fft`'s column scratch: a returned
     /// one if there is one, grown if it is too small, otherwise a new one.
     pub(super) fn lease(&self, len: usize, fft: &RealFft2<T>) -> Lease<'_, T> {
-        let zero = num_complex::Complex::new(T::zero(), T::zero());
+        let zero = Complex::new(T::zero(), T::zero());
         let reused = self.free.lock().unwrap_or_else(|e| e.into_inner()).pop();
         let mut set = reused.unwrap_or_else(|| WorkerBuffers {
             blocks: Vec::new(),
