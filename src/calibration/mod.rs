@@ -55,13 +55,14 @@ pub mod netd_measurement;
 use std::sync::Arc;
 
 use ndarray::{Array2, ArrayView2, Zip};
+use rayon::prelude::*;
 
 use crate::detector::{DetectorInstance, DetectorModel};
 use crate::error::{require_positive, Error, Result};
 use crate::processing::bad_pixels::{self, BadPixelCriteria, BadPixelMap};
-use crate::processing::netd;
 use crate::processing::nuc::{self, NucCoefficients};
 use crate::processing::temperature::{HermiteTable, InverseTable};
+use crate::processing::{median_in_place, netd};
 use crate::radiometry::{band_radiance, CameraEquation, TemperatureLut};
 use crate::sensor::Sensor;
 use crate::spectrum::Spectrum;
@@ -326,6 +327,14 @@ impl Chain {
             .unwrap_or_else(|| self.band_radiance_exact(t_k))
     }
 
+    /// [`Chain::band_radiance`] at the reciprocal temperature `u_per_k` = 1/T (K⁻¹).
+    fn band_radiance_at_inverse(&self, u_per_k: f64) -> f64 {
+        self.radiance_table
+            .as_ref()
+            .and_then(|tab| tab.eval_inverse(u_per_k))
+            .unwrap_or_else(|| self.band_radiance_exact(1.0 / u_per_k))
+    }
+
     /// Whether DN* at `t_k` is finite, inside (0, max DN) and still rising.
     fn rising(&self, t_k: f64) -> bool {
         let d0 = self.ideal_dn(t_k);
@@ -349,6 +358,8 @@ pub struct Calibration {
     frames_per_level: usize,
     route: FrameRoute,
     temperatures_k: Vec<f64>,
+    /// `bad.positions()`, row-major.
+    bad_positions: Vec<(usize, usize)>,
 }
 
 /// The cos⁴θ relative illumination of each pixel centre (θ from the IFOV and the pixel's
@@ -623,6 +634,7 @@ impl Calibration {
         let bad = bad_pixel_map(&chain, &averages, m, &nuc, clipped)?;
         let (dn_lut, radiance_lut) = lookup_tables(&chain, opts)?;
         let dn_inverse = InverseTable::new(&dn_lut, model.expected_dn(0.0), INVERSE_TOLERANCE_K)?;
+        let bad_positions = bad.positions();
         Ok(Calibration {
             chain,
             nuc,
@@ -634,6 +646,7 @@ impl Calibration {
             frames_per_level: m,
             route: opts.route,
             temperatures_k,
+            bad_positions,
         })
     }
 
@@ -701,50 +714,48 @@ impl Calibration {
     /// Errors: a frame of another shape.
     pub fn correct(&self, dn: ArrayView2<u16>) -> Result<Array2<f64>> {
         let max = self.chain.model.max_dn();
-        let raw = dn.mapv(|v| v as f64);
-        let mut out = self.nuc.apply(raw.view())?;
-        Zip::from(&mut out).and(&raw).for_each(|o, &r| {
-            if r <= 0.0 || r >= max {
-                *o = f64::NAN;
-            }
-        });
-        self.replace_bad(out)
+        let out = self
+            .nuc
+            .apply_masked(dn, |v| v as f64, |r| r <= 0.0 || r >= max)?;
+        Ok(self.replace_bad(out))
     }
 
-    /// Replaces the flagged pixels of a corrected frame by the median of their valid 3×3
-    /// neighbours ([`bad_pixels::replace`]); a flagged pixel without any valid (unflagged,
-    /// finite) neighbour in its 3×3 window becomes NaN rather than borrowing a value from
-    /// farther away (e.g. across a saturated region).
-    fn replace_bad(&self, corrected: Array2<f64>) -> Result<Array2<f64>> {
-        if self.bad.count() == 0 {
-            return Ok(corrected);
+    /// Replaces the flagged pixels of a corrected frame by the median of their valid
+    /// (unflagged, finite) 3×3 neighbours, as [`bad_pixels::replace`] does; a flagged pixel
+    /// without any valid neighbour in its 3×3 window becomes NaN rather than borrowing a
+    /// value from farther away (e.g. across a saturated region). All replacements are
+    /// taken from the frame before any is written, so the order does not matter.
+    fn replace_bad(&self, mut corrected: Array2<f64>) -> Array2<f64> {
+        if self.bad_positions.is_empty() {
+            return corrected;
         }
         let (rows, cols) = corrected.dim();
         let mask = self.bad.mask();
-        let isolated: Vec<(usize, usize)> = self
-            .bad
-            .positions()
-            .into_iter()
-            .filter(|&(r, c)| {
+        let frame = &corrected;
+        let values: Vec<f64> = self
+            .bad_positions
+            .par_iter()
+            .map(|&(r, c)| {
                 let (r0, r1) = (r.saturating_sub(1), (r + 1).min(rows - 1));
                 let (c0, c1) = (c.saturating_sub(1), (c + 1).min(cols - 1));
-                !(r0..=r1)
-                    .any(|i| (c0..=c1).any(|j| !mask[[i, j]] && corrected[[i, j]].is_finite()))
+                let mut window = [0.0; 9];
+                let mut n = 0;
+                for i in r0..=r1 {
+                    for j in c0..=c1 {
+                        let v = frame[[i, j]];
+                        if !mask[[i, j]] && v.is_finite() {
+                            window[n] = v;
+                            n += 1;
+                        }
+                    }
+                }
+                median_in_place(&mut window[..n]).unwrap_or(f64::NAN)
             })
             .collect();
-        let any_valid = corrected
-            .indexed_iter()
-            .any(|(p, v)| v.is_finite() && !mask[p]);
-        // With no valid pixel anywhere every flagged pixel is isolated (set NaN below).
-        let mut out = if any_valid {
-            bad_pixels::replace(corrected.view(), &self.bad)?
-        } else {
-            corrected
-        };
-        for (r, c) in isolated {
-            out[[r, c]] = f64::NAN;
+        for (&(r, c), v) in self.bad_positions.iter().zip(values) {
+            corrected[[r, c]] = v;
         }
-        Ok(out)
+        corrected
     }
 
     /// As [`Calibration::correct`] for a frame already in f64 (e.g. an average of frames).
@@ -752,13 +763,10 @@ impl Calibration {
     /// Errors: as [`Calibration::correct`].
     pub fn correct_f64(&self, dn: ArrayView2<f64>) -> Result<Array2<f64>> {
         let max = self.chain.model.max_dn();
-        let mut out = self.nuc.apply(dn)?;
-        Zip::from(&mut out).and(&dn).for_each(|o, &r| {
-            if !(r > 0.0 && r < max) {
-                *o = f64::NAN;
-            }
-        });
-        self.replace_bad(out)
+        let out = self
+            .nuc
+            .apply_masked(dn, |v| v, |r| !(r > 0.0 && r < max))?;
+        Ok(self.replace_bad(out))
     }
 
     /// Corrected DN → `(apparent temperature K, in-band radiance W m-2 sr-1, NaN count)`:
@@ -768,20 +776,47 @@ impl Calibration {
     /// temperature. Values outside the table (or NaN) give NaN in both images and are
     /// counted.
     pub fn to_temperature(&self, corrected: ArrayView2<f64>) -> (Array2<f64>, Array2<f64>, usize) {
-        let mut t = Array2::zeros(corrected.dim());
-        let mut l = Array2::zeros(corrected.dim());
-        Zip::from(&mut t)
-            .and(&mut l)
-            .and(&corrected)
-            .par_for_each(|t, l, &v| {
-                *t = self.dn_inverse.temperature_or_nan(&self.dn_lut, v);
-                *l = if t.is_nan() {
-                    f64::NAN
-                } else {
-                    self.chain.band_radiance(*t)
-                };
+        self.converted(corrected, |v| v)
+    }
+
+    /// [`Calibration::to_temperature`] with the images in f32 (the values rounded from the
+    /// same f64 results), as the run's products store them: no f64 images are made.
+    pub fn to_temperature_f32(
+        &self,
+        corrected: ArrayView2<f64>,
+    ) -> (Array2<f32>, Array2<f32>, usize) {
+        self.converted(corrected, |v| v as f32)
+    }
+
+    /// The apparent temperature and in-band radiance of every corrected value, stored
+    /// through `store`, and the NaN count.
+    fn converted<F: Copy + Send + Sync>(
+        &self,
+        corrected: ArrayView2<f64>,
+        store: impl Fn(f64) -> F + Sync,
+    ) -> (Array2<F>, Array2<F>, usize) {
+        let mut t = Array2::from_elem(corrected.dim(), store(0.0));
+        let mut l = Array2::from_elem(corrected.dim(), store(0.0));
+        let nan_per_row = Zip::from(t.rows_mut())
+            .and(l.rows_mut())
+            .and(corrected.rows())
+            .par_map_collect(|mut t, mut l, v| {
+                let mut nan = 0;
+                for ((t, l), &v) in t.iter_mut().zip(l.iter_mut()).zip(v) {
+                    // 1/T first: the radiance table is in 1/T too, so T's division is not
+                    // undone by another.
+                    let u = self.dn_inverse.inverse_temperature_or_nan(&self.dn_lut, v);
+                    *t = store(1.0 / u);
+                    *l = store(if u.is_nan() {
+                        nan += 1;
+                        f64::NAN
+                    } else {
+                        self.chain.band_radiance_at_inverse(u)
+                    });
+                }
+                nan
             });
-        let nan = t.iter().filter(|v| v.is_nan()).count();
+        let nan = nan_per_row.sum();
         (t, l, nan)
     }
 

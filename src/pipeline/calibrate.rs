@@ -147,7 +147,7 @@ pub fn calibrate_frames(
                         .iter()
                         .map(|f| {
                             let corrected = cal.correct(f.dn.view())?;
-                            Ok(cal.to_temperature(corrected.view()))
+                            Ok(cal.to_temperature_f32(corrected.view()))
                         })
                         .collect::<Result<Vec<_>>>()
                 },
@@ -175,8 +175,8 @@ pub fn calibrate_frames(
     let mut nan_total = 0;
     for (f, (t, l, nan)) in frames.iter_mut().zip(converted?) {
         nan_total += nan;
-        f.temperature = Some(t.mapv(|v| v as f32));
-        f.radiance = Some(l.mapv(|v| v as f32));
+        f.temperature = Some(t);
+        f.radiance = Some(l);
     }
     let temporal_floor = exposure
         .model()

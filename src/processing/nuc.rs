@@ -308,6 +308,21 @@ impl NucCoefficients {
     ///
     /// Errors: a frame of another shape.
     pub fn apply(&self, frame: ArrayView2<f64>) -> Result<Array2<f64>> {
+        self.apply_masked(frame, |x| x, |_| false)
+    }
+
+    /// [`NucCoefficients::apply`] of a frame of any sample type in one pass: `to_f64`
+    /// converts each raw sample to the DN x the polynomial takes, and the corrected value
+    /// is NaN where `clipped(x)` (e.g. a raw value at an ADC limit). The same values as
+    /// `apply` of the converted frame with those pixels set to NaN afterwards.
+    ///
+    /// Errors: as [`NucCoefficients::apply`].
+    pub fn apply_masked<T: Copy + Send + Sync>(
+        &self,
+        frame: ArrayView2<T>,
+        to_f64: impl Fn(T) -> f64 + Sync,
+        clipped: impl Fn(f64) -> bool + Sync,
+    ) -> Result<Array2<f64>> {
         check_shape("frame", frame.dim(), self.dim())?;
         let (c, s) = (self.signal_centre, self.signal_scale);
         let n = self.degree;
@@ -315,7 +330,12 @@ impl NucCoefficients {
         let mut out = Array2::zeros(frame.dim());
         Zip::indexed(&mut out)
             .and(&frame)
-            .par_for_each(|(i, j), o, &x| {
+            .par_for_each(|(i, j), o, &raw| {
+                let x = to_f64(raw);
+                if clipped(x) {
+                    *o = f64::NAN;
+                    return;
+                }
                 let z = (x - c) / s;
                 let mut acc = coeffs[[n, i, j]];
                 for k in (0..n).rev() {

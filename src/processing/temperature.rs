@@ -236,7 +236,15 @@ impl HermiteTable {
 
     /// The interpolated value at `t_k`, `None` outside the table (or for NaN).
     pub fn eval(&self, t_k: f64) -> Option<f64> {
-        let s_all = (1.0 / t_k - self.u0) / self.step_u;
+        self.eval_inverse(1.0 / t_k)
+    }
+
+    /// The interpolated value at the reciprocal temperature `u_per_k` = 1/T (K⁻¹), the
+    /// table's own coordinate: [`HermiteTable::eval`] without its division. `None` outside
+    /// the table (or for NaN).
+    #[inline]
+    pub fn eval_inverse(&self, u_per_k: f64) -> Option<f64> {
+        let s_all = (u_per_k - self.u0) / self.step_u;
         let last = self.value.len() - 1;
         // A tolerance of a few ulps keeps the end nodes inside despite the 1/T rounding.
         if !(s_all >= -1e-9 && s_all <= last as f64 + 1e-9) {
@@ -265,7 +273,11 @@ impl HermiteTable {
 /// Fast inverse of a [`TemperatureLut`] for whole images: the reciprocal temperature
 /// u = 1/T tabulated against the log-signal `w = ln(v − v_floor)` on equal steps and
 /// interpolated by 4-point Lagrange cubics, each table interval checked against the exact
-/// inversion ([`TemperatureLut::temperature`]).
+/// inversion ([`TemperatureLut::temperature`]). Each interval's cubic is stored as four
+/// coefficients of powers of the interval fraction, so a lookup evaluates it by Horner's
+/// rule (no divisions); the image conversion stays in 1/T
+/// ([`InverseTable::inverse_temperature_or_nan`]) for the radiance table, which is in 1/T
+/// too ([`HermiteTable::eval_inverse`]).
 ///
 /// Why these coordinates: a blackbody band response above its zero-signal level
 /// `v_floor` behaves like `v − v_floor ∝ e^{−c u}` (Wien, c = hc/(λk)), so u is nearly
@@ -288,6 +300,9 @@ pub struct InverseTable {
     inv_step_w: f64,
     /// 1/T at the nodes.
     u: Vec<f64>,
+    /// Per interval, the coefficients `[c0, c1, c2, c3]` of its cubic in the interval
+    /// fraction s (`c0 + s(c1 + s(c2 + s c3))`, [`cubic_coefficients`]).
+    coef: Vec<[f64; 4]>,
     /// Intervals inverted exactly (the cubic missed the tolerance there).
     exact: Vec<bool>,
 }
@@ -334,12 +349,14 @@ impl InverseTable {
                 .map(|k2| lut.temperature(value_at(k2)))
                 .collect::<Result<_>>()?;
             let u: Vec<f64> = t.iter().step_by(2).map(|t| 1.0 / t).collect();
+            let coef = (0..intervals).map(|i| cubic_coefficients(&u, i)).collect();
             let mut table = InverseTable {
                 floor,
                 value_range: (v_lo, v_hi),
                 w0,
                 inv_step_w: 1.0 / step,
                 u,
+                coef,
                 exact: vec![false; intervals],
             };
             let mut missed = 0;
@@ -369,16 +386,11 @@ impl InverseTable {
         self.exact.iter().filter(|&&e| e).count()
     }
 
-    /// 1/T by the cubic through the four nodes around interval `i` (one-sided at the ends),
-    /// at fraction `s` ∈ [0, 1] of the interval.
+    /// 1/T by the cubic of interval `i` at fraction `s` ∈ [0, 1] of the interval.
+    #[inline]
     fn cubic(&self, i: usize, s: f64) -> f64 {
-        let n = self.u.len() - 1;
-        let j0 = i.saturating_sub(1).min(n - 3);
-        let x = s + (i - j0) as f64;
-        let (a, b, c, d) = (x, x - 1.0, x - 2.0, x - 3.0);
-        let u = &self.u[j0..j0 + 4];
-        -u[0] * b * c * d / 6.0 + u[1] * a * c * d / 2.0 - u[2] * a * b * d / 2.0
-            + u[3] * a * b * c / 6.0
+        let [c0, c1, c2, c3] = self.coef[i];
+        c0 + s * (c1 + s * (c2 + s * c3))
     }
 
     /// The temperature whose response is `value` (K), NaN for NaN or values outside the
@@ -386,6 +398,14 @@ impl InverseTable {
     /// the tolerance of the construction. `lut` must be the table this inverse was built
     /// from (it serves the flagged intervals).
     pub fn temperature_or_nan(&self, lut: &TemperatureLut, value: f64) -> f64 {
+        1.0 / self.inverse_temperature_or_nan(lut, value)
+    }
+
+    /// 1/T (K⁻¹) of the temperature whose response is `value`: the reciprocal of
+    /// [`InverseTable::temperature_or_nan`] (NaN likewise), without its division, for
+    /// callers that go on in 1/T ([`HermiteTable::eval_inverse`]).
+    #[inline]
+    pub fn inverse_temperature_or_nan(&self, lut: &TemperatureLut, value: f64) -> f64 {
         let (v_lo, v_hi) = self.value_range;
         if !(value >= v_lo && value <= v_hi) {
             return f64::NAN;
@@ -394,8 +414,80 @@ impl InverseTable {
         let pos = (((value - self.floor).ln() - self.w0) * self.inv_step_w).clamp(0.0, n as f64);
         let i = (pos as usize).min(n - 1);
         if self.exact[i] {
-            return lut.temperature_or_nan(value);
+            return 1.0 / lut.temperature_or_nan(value);
         }
-        1.0 / self.cubic(i, pos - i as f64)
+        self.cubic(i, pos - i as f64)
+    }
+}
+
+/// The cubic through the four nodes `u[j0 .. j0 + 4]` around interval `i` (one-sided at the
+/// table's ends, `j0 = min(max(i − 1, 0), n − 3)`), as coefficients of powers of the
+/// fraction s ∈ [0, 1] of interval i: Newton's forward differences of the nodes give the
+/// polynomial in x = s + (i − j0), `u0 + Δ¹x + Δ²x(x−1)/2 + Δ³x(x−1)(x−2)/6`, whose powers
+/// of x are then shifted to powers of s (Taylor shift by i − j0). The same cubic as the
+/// 4-point Lagrange form, to rounding (tested).
+fn cubic_coefficients(u: &[f64], i: usize) -> [f64; 4] {
+    let n = u.len() - 1;
+    let j0 = i.saturating_sub(1).min(n - 3);
+    let (y0, y1, y2, y3) = (u[j0], u[j0 + 1], u[j0 + 2], u[j0 + 3]);
+    let d1 = y1 - y0;
+    let d2 = y2 - 2.0 * y1 + y0;
+    let d3 = y3 - 3.0 * y2 + 3.0 * y1 - y0;
+    // In powers of x: x(x−1)/2 = (x² − x)/2, x(x−1)(x−2)/6 = (x³ − 3x² + 2x)/6.
+    let a = [y0, d1 - d2 / 2.0 + d3 / 3.0, d2 / 2.0 - d3 / 2.0, d3 / 6.0];
+    // p(s + d) in powers of s.
+    let d = (i - j0) as f64;
+    [
+        a[0] + d * (a[1] + d * (a[2] + d * a[3])),
+        a[1] + d * (2.0 * a[2] + 3.0 * d * a[3]),
+        a[2] + 3.0 * d * a[3],
+        a[3],
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The 4-point Lagrange form of the cubic through `u[j0 .. j0 + 4]` at x (nodes at
+    /// x = 0, 1, 2, 3), the definition `cubic_coefficients` is expanded from.
+    fn lagrange(u: &[f64], j0: usize, x: f64) -> f64 {
+        let (a, b, c, d) = (x, x - 1.0, x - 2.0, x - 3.0);
+        let u = &u[j0..j0 + 4];
+        -u[0] * b * c * d / 6.0 + u[1] * a * c * d / 2.0 - u[2] * a * b * d / 2.0
+            + u[3] * a * b * c / 6.0
+    }
+
+    /// The power-series coefficients give the Lagrange cubic of every interval (interior,
+    /// first and last: one-sided stencils) to within a few ulp, and pass through the
+    /// interval's end nodes: on a table-like smooth sequence (1/T at equal steps of a
+    /// log-signal) and on an irregular one.
+    #[test]
+    fn cubic_coefficients_are_the_lagrange_cubic() {
+        let smooth: Vec<f64> = (0..=40)
+            .map(|k| 1.0 / (200.0 + 20.0 * k as f64 + 0.3 * (k * k) as f64))
+            .collect();
+        let irregular: Vec<f64> = (0..=12)
+            .map(|k| ((k * 7919) % 13) as f64 * 0.37 - 1.1 + 0.05 * k as f64)
+            .collect();
+        for u in [smooth, irregular] {
+            let n = u.len() - 1;
+            let scale = u.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            for i in 0..n {
+                let c = cubic_coefficients(&u, i);
+                let j0 = i.saturating_sub(1).min(n - 3);
+                for s in [0.0, 0.125, 0.25, 0.5, 0.75, 0.9, 1.0] {
+                    let horner = c[0] + s * (c[1] + s * (c[2] + s * c[3]));
+                    let want = lagrange(&u, j0, s + (i - j0) as f64);
+                    assert!(
+                        (horner - want).abs() <= 1e-14 * scale,
+                        "interval {i}, s {s}: {horner} vs {want}"
+                    );
+                }
+                let at = |s: f64| c[0] + s * (c[1] + s * (c[2] + s * c[3]));
+                assert!((at(0.0) - u[i]).abs() <= 1e-15 * scale);
+                assert!((at(1.0) - u[i + 1]).abs() <= 1e-14 * scale);
+            }
+        }
     }
 }

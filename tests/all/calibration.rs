@@ -445,3 +445,76 @@ fn statistical_route_matches_exposed_frames() {
         }
     }
 }
+
+/// `correct` against its definition, assembled here from public parts: the NUC polynomial
+/// of the raw DN, NaN where the raw DN is at an ADC limit, and every flagged pixel replaced
+/// by the median of its valid (unflagged, finite) 3×3 neighbours, or NaN when it has none.
+/// The frame has dead pixels and a saturated block (raw DN at the ADC maximum) wide enough
+/// that flagged pixels inside it have no valid neighbour. `to_temperature_f32` gives
+/// `to_temperature`'s values rounded to f32 and the same NaN count.
+#[test]
+fn correct_replaces_flagged_pixels_from_valid_neighbours_only() {
+    let (s, model, inst) = setup(&["detector.defects.dead_fraction=0.02"]);
+    let cal = Calibration::new(&s, &model, &inst, &CalibrationOptions::default()).unwrap();
+    let bad = cal.bad_pixels().mask().clone();
+    assert!(bad.iter().filter(|&&b| b).count() >= 20);
+    let e300 = cal.blackbody_electrons(300.0).unwrap();
+    let e_hot = 50.0 * e300;
+    let mean_e = Array2::from_shape_fn((64, 80), |(r, c)| {
+        if (20..30).contains(&r) && (30..45).contains(&c) {
+            e_hot
+        } else {
+            e300 * (1.0 + 0.001 * c as f64)
+        }
+    });
+    let dn = inst.expose(&mean_e, 3).unwrap();
+    let max = model.max_dn();
+    assert!(dn.iter().any(|&v| v as f64 >= max), "the block saturates");
+    let got = cal.correct(dn.view()).unwrap();
+
+    let raw = dn.mapv(|v| v as f64);
+    let mut nuc = cal.nuc().apply(raw.view()).unwrap();
+    for (o, &r) in nuc.iter_mut().zip(&raw) {
+        if r <= 0.0 || r >= max {
+            *o = f64::NAN;
+        }
+    }
+    let mut isolated = 0;
+    for ((r, c), &flagged) in bad.indexed_iter() {
+        let want = if flagged {
+            let mut v = Vec::new();
+            for i in r.saturating_sub(1)..=(r + 1).min(63) {
+                for j in c.saturating_sub(1)..=(c + 1).min(79) {
+                    if !bad[[i, j]] && nuc[[i, j]].is_finite() {
+                        v.push(nuc[[i, j]]);
+                    }
+                }
+            }
+            v.sort_by(f64::total_cmp);
+            match v.len() {
+                0 => {
+                    isolated += 1;
+                    f64::NAN
+                }
+                n if n % 2 == 1 => v[n / 2],
+                n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+            }
+        } else {
+            nuc[[r, c]]
+        };
+        let g = got[[r, c]];
+        assert!(
+            (g.is_nan() && want.is_nan()) || g == want,
+            "({r}, {c}) flagged {flagged}: {g} vs {want}"
+        );
+    }
+    assert!(isolated >= 1, "a flagged pixel inside the saturated block");
+
+    let (t, l, nan) = cal.to_temperature(got.view());
+    let (t32, l32, nan32) = cal.to_temperature_f32(got.view());
+    assert_eq!(nan, nan32);
+    assert!(nan >= 10 * 15);
+    for (a, b) in t.iter().zip(&t32).chain(l.iter().zip(&l32)) {
+        assert!((a.is_nan() && b.is_nan()) || (*a as f32).to_bits() == b.to_bits());
+    }
+}
