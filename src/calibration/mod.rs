@@ -455,14 +455,13 @@ fn reference_temperatures(
     levels::automatic(chain, levels::SEARCH_RANGE_K, (opts.degree + 2).max(3))
 }
 
-/// The bad-pixel map: [`bad_pixels::detect`] on the coldest and hottest level averages,
-/// united with the pixels the NUC fit could not determine and those clipped at any level.
-fn bad_pixel_map(
+/// The defects [`bad_pixels::detect`] finds on the coldest and hottest level averages
+/// (the calibration's bad-pixel map unites them with the pixels the NUC fit could not
+/// determine and those clipped at any level).
+fn detected_defects(
     chain: &Chain,
     averages: &[(f64, f64, Array2<f64>)],
     frames: usize,
-    nuc: &NucCoefficients,
-    clipped: Array2<bool>,
 ) -> Result<BadPixelMap> {
     let coldest = averages.iter().min_by(|a, b| a.0.total_cmp(&b.0));
     let hottest = averages.iter().max_by(|a, b| a.0.total_cmp(&b.0));
@@ -484,11 +483,7 @@ fn bad_pixel_map(
         min_sigma,
         ..BadPixelCriteria::default()
     };
-    let detection = bad_pixels::detect(coldest.2.view(), hottest.2.view(), &criteria)?;
-    detection
-        .map
-        .union(&nuc.rank_deficient_map())?
-        .union(&BadPixelMap::from_mask(clipped))
+    Ok(bad_pixels::detect(coldest.2.view(), hottest.2.view(), &criteria)?.map)
 }
 
 /// The DN table on `lut_range_k` trimmed to where DN* rises, and the in-band radiance
@@ -630,8 +625,15 @@ impl Calibration {
         }
         let levels: Vec<(f64, ArrayView2<f64>)> =
             averages.iter().map(|(_, r, a)| (*r, a.view())).collect();
-        let nuc = NucCoefficients::fit(&levels, opts.degree)?;
-        let bad = bad_pixel_map(&chain, &averages, m, &nuc, clipped)?;
+        // The defect tests need the level averages only, not the fit: side by side.
+        let (nuc, defects) = rayon::join(
+            || NucCoefficients::fit(&levels, opts.degree),
+            || detected_defects(&chain, &averages, m),
+        );
+        let nuc = nuc?;
+        let bad = defects?
+            .union(&nuc.rank_deficient_map())?
+            .union(&BadPixelMap::from_mask(clipped))?;
         let (dn_lut, radiance_lut) = lookup_tables(&chain, opts)?;
         let dn_inverse = InverseTable::new(&dn_lut, model.expected_dn(0.0), INVERSE_TOLERANCE_K)?;
         let bad_positions = bad.positions();
