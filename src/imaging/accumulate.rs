@@ -305,34 +305,37 @@ fn accumulate_block_full<T: FftFloat>(
     accumulate_block_body(acc, columns, blocks, weights, profile);
 }
 
-/// [`accumulate_block_body`] for f32 spectra, four frequency samples (of one column) per
-/// step with AVX2 intrinsics (the scalar loop spends most of its instructions moving
-/// single lanes: one table position, one weight and one factor at a time).
+/// [`accumulate_block_body`] for f32 spectra, four rows of a column and their four mirror
+/// rows per step with AVX2 intrinsics (the scalar loop spends most of its instructions
+/// moving single lanes: one table position, one weight and one factor at a time).
 ///
-/// Per step of four samples, with the samples as the four lanes:
-/// 1. ρ (four stored values, reversed in the upper half of the column, see
-///    [`RadialGrid`]) and A of the four samples; the table position `i` and `frac`
-///    computed as [`ChunkProfile::eval_all`] computes them (`min(⌊max(t, 0)⌋, len − 2)`
-///    equals its saturating `t as u32` clamped to `len − 2`, and `min(t − i, 1)` its
-///    `frac`);
-/// 2. the two table rows of each sample loaded (their lanes are the bands) and transposed
+/// ρ is even in fy: rows `1 + k … 4 + k` of a column and their mirrors `rows − 4 − k …
+/// rows − 1 − k` have the same four ρ, reversed ([`RadialGrid`]). Per step, with the four
+/// ρ as the four lanes:
+/// 1. ρ and A of the eight samples; the table position `i` and `frac` computed as
+///    [`ChunkProfile::eval_all`] computes them (`min(⌊max(t, 0)⌋, len − 2)` equals its
+///    saturating `t as u32` clamped to `len − 2`, and `min(t − i, 1)` its `frac`);
+/// 2. the two table rows of each ρ loaded (their lanes are the bands) and transposed
 ///    4 × 4 so that the lanes are the samples;
-/// 3. per band c: `a + frac·(b − a)`, 0 beyond the band's cut, times the aerosol plateau,
-///    then the factor `(w_c·A)·g` and `acc += s·factor` for the two pairs of samples
-///    (one 256-bit vector holds two complex f64), bands in order 0, 1, 2, 3.
+/// 3. per band c: `g = a + frac·(b − a)`, 0 beyond the band's cut, times the aerosol
+///    plateau, once for both halves; then the factors `(w_c·A)·g` of the four rows and
+///    `(w_c·A)·g` with g's lanes reversed of their mirrors, and `acc += s·factor` for the
+///    four pairs of samples (one 256-bit vector holds two complex f64), bands in order
+///    0, 1, 2, 3.
 ///
-/// Two tests are made once per step rather than per band: where no sample is beyond the
+/// Two tests are made once per step rather than per band: where no ρ is beyond the
 /// chunk's smallest cut, the cut masks are skipped (they would keep every value), and
-/// where every sample is above the bound past which every lane is certainly on its aerosol
+/// where every ρ is above the bound past which every lane is certainly on its aerosol
 /// plateau (the profile's, which [`ChunkProfile::eval_all`] uses too), the exact per-lane
 /// plateau test is skipped.
 ///
-/// These are the scalar loop's IEEE operations in its order, lane by lane (no FMA), so the
-/// result is the same bit for bit (`the_f32_avx2_loop_equals_the_scalar_loop_bit_for_bit`).
-/// Steps where a sample has A = 0 (the scalar loop skips it) or where a sample is not past
+/// These are the scalar loop's IEEE operations in its order, sample by sample (no FMA),
+/// so the result is the same bit for bit
+/// (`the_f32_avx2_loop_equals_the_scalar_loop_bit_for_bit`). Row 0 (its own mirror), an
+/// even column's Nyquist row (likewise), the `upper mod 4` pairs left over, and steps
+/// where one of the eight samples has A = 0 (the scalar loop skips it) or a ρ is not past
 /// every band's aerosol table (the scalar loop then evaluates the tables; only next to
-/// ρ = 0) and the last `len mod 4` samples of each half column go through the scalar loop
-/// itself.
+/// ρ = 0) go through the scalar loop itself.
 ///
 /// # Safety
 /// The CPU must support AVX2 (`is_x86_feature_detected!("avx2")`).
@@ -372,29 +375,46 @@ unsafe fn accumulate_block_f32_avx2(
     let past_from = _mm256_set1_pd(lanes.plateau.map_or(f64::INFINITY, |p| p.3));
     // Below the smallest cut no lane is cut: the per-band cut masks are skipped.
     let first_cut = _mm256_set1_pd(lanes.cut.iter().copied().fold(f64::INFINITY, f64::min));
-    for Segment {
-        samples,
-        rho,
-        mirrored,
-    } in columns.segments(acc.len())
-    {
-        let n = samples.len();
-        let acc = &mut acc[samples.clone()];
-        let amp = &columns.achromatic[samples.clone()];
-        let blocks = blocks.map(|b| &b[samples.clone()]);
-        let steps = n / 4;
+    let rows = columns.rows;
+    let half = stored_rows(rows);
+    // Rows above the stored half: row v ≥ half reads ρ of row `rows − v`.
+    let upper = rows.saturating_sub(half);
+    let whole_columns = (acc.len() / rows.max(1)).min(columns.achromatic.len() / rows.max(1));
+    for j in 0..whole_columns {
+        let start = j * rows;
+        let rho = &columns.rho[j * half..(j + 1) * half];
+        let acc = &mut acc[start..start + rows];
+        let amp = &columns.achromatic[start..start + rows];
+        let blocks = blocks.map(|b| &b[start..start + rows]);
+        // The scalar loop for rows `v0 .. v0 + n` of the column, ρ from `rho` (backwards
+        // if `mirrored`).
+        let scalar_rows =
+            |acc: &mut [Complex64], v0: usize, n: usize, rho: &[f64], mirrored: bool| {
+                accumulate_samples(
+                    &mut acc[v0..v0 + n],
+                    rho,
+                    mirrored,
+                    &amp[v0..v0 + n],
+                    blocks.map(|b| &b[v0..v0 + n]),
+                    weights,
+                    profile,
+                )
+            };
+        // Row 0 has no mirror.
+        scalar_rows(acc, 0, 1, &rho[..1], false);
+        // Rows 1 + k … 4 + k (ρ = rho[1 + k .. 5 + k]) and their mirrors rows − 4 − k …
+        // rows − 1 − k (the same ρ, reversed) share one table lookup.
+        let steps = upper / 4;
         for q in 0..steps {
             let k = 4 * q;
-            // Samples k .. k + 4 read ρ at k .. k + 4, or mirrored at
-            // n − 1 − k down to n − 4 − k.
-            let rho4 = if mirrored {
-                let r = _mm256_loadu_pd(rho[n - 4 - k..n - k].as_ptr());
-                _mm256_permute4x64_pd::<0b00_01_10_11>(r)
-            } else {
-                _mm256_loadu_pd(rho[k..k + 4].as_ptr())
-            };
-            let amp4 = _mm256_cvtps_pd(_mm_loadu_ps(amp[k..k + 4].as_ptr()));
-            let mut scalar = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_EQ_OQ>(amp4, zero)) != 0;
+            let (lo, hi) = (1 + k, rows - 4 - k);
+            let r4 = &rho[lo..lo + 4];
+            let rho4 = _mm256_loadu_pd(r4.as_ptr());
+            let amp_lo = _mm256_cvtps_pd(_mm_loadu_ps(amp[lo..lo + 4].as_ptr()));
+            let amp_hi = _mm256_cvtps_pd(_mm_loadu_ps(amp[hi..hi + 4].as_ptr()));
+            let mut scalar = (_mm256_movemask_pd(_mm256_cmp_pd::<_CMP_EQ_OQ>(amp_lo, zero))
+                | _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_EQ_OQ>(amp_hi, zero)))
+                != 0;
             let surely_past = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho4, past_from));
             if let (Some((sc, end, _)), false) = (&plateau, surely_past == 0b1111) {
                 let mut past = _mm256_cmp_pd::<_CMP_GT_OQ>(_mm256_mul_pd(rho4, sc[0]), end[0]);
@@ -405,20 +425,8 @@ unsafe fn accumulate_block_f32_avx2(
                 scalar |= _mm256_movemask_pd(past) != 0b1111;
             }
             if scalar {
-                let r = if mirrored {
-                    &rho[n - 4 - k..n - k]
-                } else {
-                    &rho[k..k + 4]
-                };
-                accumulate_samples(
-                    &mut acc[k..k + 4],
-                    r,
-                    mirrored,
-                    &amp[k..k + 4],
-                    blocks.map(|b| &b[k..k + 4]),
-                    weights,
-                    profile,
-                );
+                scalar_rows(acc, lo, 4, r4, false);
+                scalar_rows(acc, hi, 4, r4, true);
                 continue;
             }
             let t = _mm256_mul_pd(rho4, inv_step);
@@ -441,8 +449,10 @@ unsafe fn accumulate_block_f32_avx2(
             let d = [0, 1, 2, 3].map(|j| _mm256_sub_pd(b[j], a[j]));
             let (a, d) = (transpose_4x4_pd(a), transpose_4x4_pd(d));
             let any_cut = _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_GT_OQ>(rho4, first_cut)) != 0;
-            let mut s01 = _mm256_loadu_pd(acc[k..k + 2].as_ptr().cast());
-            let mut s23 = _mm256_loadu_pd(acc[k + 2..k + 4].as_ptr().cast());
+            let mut lo01 = _mm256_loadu_pd(acc[lo..lo + 2].as_ptr().cast());
+            let mut lo23 = _mm256_loadu_pd(acc[lo + 2..lo + 4].as_ptr().cast());
+            let mut hi01 = _mm256_loadu_pd(acc[hi..hi + 2].as_ptr().cast());
+            let mut hi23 = _mm256_loadu_pd(acc[hi + 2..hi + 4].as_ptr().cast());
             for c in 0..CHUNK_LANES {
                 let v = _mm256_add_pd(a[c], _mm256_mul_pd(frac, d[c]));
                 let mut g = if any_cut {
@@ -453,29 +463,40 @@ unsafe fn accumulate_block_f32_avx2(
                 if let Some((_, _, beyond)) = &plateau {
                     g = _mm256_mul_pd(g, beyond[c]);
                 }
-                let f = _mm256_mul_pd(_mm256_mul_pd(w[c], amp4), g);
+                // The mirrored rows run the other way: their factors, lanes reversed.
+                let g_hi = _mm256_permute4x64_pd::<0b00_01_10_11>(g);
+                let f_lo = _mm256_mul_pd(_mm256_mul_pd(w[c], amp_lo), g);
+                let f_hi = _mm256_mul_pd(_mm256_mul_pd(w[c], amp_hi), g_hi);
+                let x =
+                    |v: usize| _mm256_cvtps_pd(_mm_loadu_ps(blocks[c][v..v + 2].as_ptr().cast()));
                 // [f0, f0, f1, f1] and [f2, f2, f3, f3]: one factor per complex sample.
-                let f01 = _mm256_permute4x64_pd::<0b01_01_00_00>(f);
-                let f23 = _mm256_permute4x64_pd::<0b11_11_10_10>(f);
-                let x01 = _mm256_cvtps_pd(_mm_loadu_ps(blocks[c][k..k + 2].as_ptr().cast()));
-                let x23 = _mm256_cvtps_pd(_mm_loadu_ps(blocks[c][k + 2..k + 4].as_ptr().cast()));
-                s01 = _mm256_add_pd(s01, _mm256_mul_pd(x01, f01));
-                s23 = _mm256_add_pd(s23, _mm256_mul_pd(x23, f23));
+                let pair01 = |f| _mm256_permute4x64_pd::<0b01_01_00_00>(f);
+                let pair23 = |f| _mm256_permute4x64_pd::<0b11_11_10_10>(f);
+                lo01 = _mm256_add_pd(lo01, _mm256_mul_pd(x(lo), pair01(f_lo)));
+                lo23 = _mm256_add_pd(lo23, _mm256_mul_pd(x(lo + 2), pair23(f_lo)));
+                hi01 = _mm256_add_pd(hi01, _mm256_mul_pd(x(hi), pair01(f_hi)));
+                hi23 = _mm256_add_pd(hi23, _mm256_mul_pd(x(hi + 2), pair23(f_hi)));
             }
-            _mm256_storeu_pd(acc[k..k + 2].as_mut_ptr().cast(), s01);
-            _mm256_storeu_pd(acc[k + 2..k + 4].as_mut_ptr().cast(), s23);
+            _mm256_storeu_pd(acc[lo..lo + 2].as_mut_ptr().cast(), lo01);
+            _mm256_storeu_pd(acc[lo + 2..lo + 4].as_mut_ptr().cast(), lo23);
+            _mm256_storeu_pd(acc[hi..hi + 2].as_mut_ptr().cast(), hi01);
+            _mm256_storeu_pd(acc[hi + 2..hi + 4].as_mut_ptr().cast(), hi23);
         }
+        // The pairs left over: rows 1 + 4·steps ..= upper and their mirrors.
         let k = 4 * steps;
-        let r = if mirrored { &rho[..n - k] } else { &rho[k..] };
-        accumulate_samples(
-            &mut acc[k..],
-            r,
-            mirrored,
-            &amp[k..],
-            blocks.map(|b| &b[k..]),
-            weights,
-            profile,
-        );
+        let left = upper - k;
+        scalar_rows(acc, 1 + k, left, &rho[1 + k..1 + upper], false);
+        scalar_rows(acc, half, left, &rho[1 + k..1 + upper], true);
+        // An even column's Nyquist row (rows/2) is its own mirror.
+        if 1 + upper < half {
+            scalar_rows(
+                acc,
+                1 + upper,
+                half - 1 - upper,
+                &rho[1 + upper..half],
+                false,
+            );
+        }
     }
 }
 
@@ -622,6 +643,9 @@ mod tests {
                         0 => 1.2 * rho_max * rng.random::<f64>(),
                         // The aerosol cores (ρ < a/λ, a few cycles/rad).
                         1 if k < 400 => 3.0 * rng.random::<f64>(),
+                        // Inside every band's cut at the end of the half, where the rows
+                        // left over from the AVX2 loop's pairs of mirrored rows fall.
+                        _ if k + 8 >= half => 0.3 * rho_max * (1.0 + rng.random::<f64>()),
                         // A smooth run, as along a column of the spectrum.
                         _ => rho_max * (k as f64 / half as f64),
                     })
