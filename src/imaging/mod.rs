@@ -351,16 +351,22 @@ impl Imager {
             y: PadMap::new(meta.rows, sampling.y.pad_before, sampling.y.padded_len),
             x: PadMap::new(meta.cols, sampling.x.pad_before, sampling.x.padded_len),
         };
-        let sampler = otf.achromatic_sampler(&grid);
-        let radial = RadialGrid::from_fn(&grid, |u, v| sampler.at(u, v));
-        drop(sampler);
         let (lo, hi) = active
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), l| {
                 (lo.min(*l), hi.max(*l))
             });
         let (lo, hi) = if lo <= hi { (lo, hi) } else { (1.0, 1.0) };
-        let tables = RadialTables::new(&otf, lo, hi);
+        // The frequency samples and the chromatic tables are independent; both are
+        // parallel loops with serial stretches between them (the tables' refinement
+        // levels, the sampler's per-axis factors), which the other fills.
+        let (radial, tables) = rayon::join(
+            || {
+                let sampler = otf.achromatic_sampler(&grid);
+                RadialGrid::from_fn(&grid, |u, v| sampler.at(u, v))
+            },
+            || RadialTables::new(&otf, lo, hi),
+        );
         Ok(Imager {
             sensor: sensor.clone(),
             otf,
