@@ -61,7 +61,7 @@ use crate::detector::{DetectorInstance, DetectorModel};
 use crate::error::{require_positive, Error, Result};
 use crate::processing::bad_pixels::{self, BadPixelCriteria, BadPixelMap};
 use crate::processing::nuc::{self, NucCoefficients};
-use crate::processing::temperature::{HermiteTable, InverseTable};
+use crate::processing::temperature::{HermiteTable, InverseLookup, InverseTable};
 use crate::processing::{median_in_place, netd};
 use crate::radiometry::{band_radiance, CameraEquation, TemperatureLut};
 use crate::sensor::Sensor;
@@ -805,16 +805,27 @@ impl Calibration {
             .par_map_collect(|mut t, mut l, v| {
                 let mut nan = 0;
                 for ((t, l), &v) in t.iter_mut().zip(l.iter_mut()).zip(v) {
-                    // 1/T first: the radiance table is in 1/T too, so T's division is not
-                    // undone by another.
-                    let u = self.dn_inverse.inverse_temperature_or_nan(&self.dn_lut, v);
-                    *t = store(1.0 / u);
-                    *l = store(if u.is_nan() {
+                    let (temperature, radiance) = match self.dn_inverse.lookup(v) {
+                        // 1/T from the table: the radiance table is in 1/T too, so T's
+                        // division is not undone by another.
+                        InverseLookup::Cubic(u) => {
+                            (1.0 / u, self.chain.band_radiance_at_inverse(u))
+                        }
+                        InverseLookup::Exact => {
+                            let t = self.dn_lut.temperature_or_nan(v);
+                            (t, self.chain.band_radiance(t))
+                        }
+                        InverseLookup::Outside => (f64::NAN, f64::NAN),
+                    };
+                    // A finite value can still miss the exact inversion (NaN T).
+                    let (temperature, radiance) = if temperature.is_nan() {
                         nan += 1;
-                        f64::NAN
+                        (f64::NAN, f64::NAN)
                     } else {
-                        self.chain.band_radiance_at_inverse(u)
-                    });
+                        (temperature, radiance)
+                    };
+                    *t = store(temperature);
+                    *l = store(radiance);
                 }
                 nan
             });

@@ -275,9 +275,8 @@ impl HermiteTable {
 /// interpolated by 4-point Lagrange cubics, each table interval checked against the exact
 /// inversion ([`TemperatureLut::temperature`]). Each interval's cubic is stored as four
 /// coefficients of powers of the interval fraction, so a lookup evaluates it by Horner's
-/// rule (no divisions); the image conversion stays in 1/T
-/// ([`InverseTable::inverse_temperature_or_nan`]) for the radiance table, which is in 1/T
-/// too ([`HermiteTable::eval_inverse`]).
+/// rule (no divisions); the image conversion stays in 1/T ([`InverseTable::lookup`]) for
+/// the radiance table, which is in 1/T too ([`HermiteTable::eval_inverse`]).
 ///
 /// Why these coordinates: a blackbody band response above its zero-signal level
 /// `v_floor` behaves like `v − v_floor ∝ e^{−c u}` (Wien, c = hc/(λk)), so u is nearly
@@ -398,26 +397,43 @@ impl InverseTable {
     /// the tolerance of the construction. `lut` must be the table this inverse was built
     /// from (it serves the flagged intervals).
     pub fn temperature_or_nan(&self, lut: &TemperatureLut, value: f64) -> f64 {
-        1.0 / self.inverse_temperature_or_nan(lut, value)
+        match self.lookup(value) {
+            InverseLookup::Outside => f64::NAN,
+            InverseLookup::Exact => lut.temperature_or_nan(value),
+            InverseLookup::Cubic(u) => 1.0 / u,
+        }
     }
 
-    /// 1/T (K⁻¹) of the temperature whose response is `value`: the reciprocal of
-    /// [`InverseTable::temperature_or_nan`] (NaN likewise), without its division, for
-    /// callers that go on in 1/T ([`HermiteTable::eval_inverse`]).
+    /// Where `value` falls: outside the table (or NaN), in an interval inverted exactly,
+    /// or 1/T (K⁻¹) from the interval's cubic — for callers that go on in 1/T
+    /// ([`HermiteTable::eval_inverse`]) and so skip [`InverseTable::temperature_or_nan`]'s
+    /// division.
     #[inline]
-    pub fn inverse_temperature_or_nan(&self, lut: &TemperatureLut, value: f64) -> f64 {
+    pub fn lookup(&self, value: f64) -> InverseLookup {
         let (v_lo, v_hi) = self.value_range;
         if !(value >= v_lo && value <= v_hi) {
-            return f64::NAN;
+            return InverseLookup::Outside;
         }
         let n = self.exact.len();
         let pos = (((value - self.floor).ln() - self.w0) * self.inv_step_w).clamp(0.0, n as f64);
         let i = (pos as usize).min(n - 1);
         if self.exact[i] {
-            return 1.0 / lut.temperature_or_nan(value);
+            return InverseLookup::Exact;
         }
-        self.cubic(i, pos - i as f64)
+        InverseLookup::Cubic(self.cubic(i, pos - i as f64))
     }
+}
+
+/// Where a value falls in an [`InverseTable`] ([`InverseTable::lookup`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum InverseLookup {
+    /// Outside the table's value range, or NaN: no temperature.
+    Outside,
+    /// In an interval the cubic missed the tolerance on: invert it exactly
+    /// ([`TemperatureLut::temperature_or_nan`]).
+    Exact,
+    /// 1/T (K⁻¹) from the interval's cubic.
+    Cubic(f64),
 }
 
 /// The cubic through the four nodes `u[j0 .. j0 + 4]` around interval `i` (one-sided at the
