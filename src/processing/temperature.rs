@@ -297,8 +297,6 @@ pub struct InverseTable {
     value_range: (f64, f64),
     w0: f64,
     inv_step_w: f64,
-    /// 1/T at the nodes.
-    u: Vec<f64>,
     /// Per interval, the coefficients `[c0, c1, c2, c3]` of its cubic in the interval
     /// fraction s (`c0 + s(c1 + s(c2 + s c3))`, [`cubic_coefficients`]).
     coef: Vec<[f64; 4]>,
@@ -354,7 +352,6 @@ impl InverseTable {
                 value_range: (v_lo, v_hi),
                 w0,
                 inv_step_w: 1.0 / step,
-                u,
                 coef,
                 exact: vec![false; intervals],
             };
