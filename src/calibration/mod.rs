@@ -805,25 +805,22 @@ impl Calibration {
             .par_map_collect(|mut t, mut l, v| {
                 let mut nan = 0;
                 for ((t, l), &v) in t.iter_mut().zip(l.iter_mut()).zip(v) {
-                    let (temperature, radiance) = match self.dn_inverse.lookup(v) {
+                    let converted = match self.dn_inverse.lookup(v) {
                         // 1/T from the table: the radiance table is in 1/T too, so T's
                         // division is not undone by another.
                         InverseLookup::Cubic(u) => {
-                            (1.0 / u, self.chain.band_radiance_at_inverse(u))
+                            Some((1.0 / u, self.chain.band_radiance_at_inverse(u)))
                         }
                         InverseLookup::Exact => {
                             let t = self.dn_lut.temperature_or_nan(v);
-                            (t, self.chain.band_radiance(t))
+                            (!t.is_nan()).then(|| (t, self.chain.band_radiance(t)))
                         }
-                        InverseLookup::Outside => (f64::NAN, f64::NAN),
+                        InverseLookup::Outside => None,
                     };
-                    // A finite value can still miss the exact inversion (NaN T).
-                    let (temperature, radiance) = if temperature.is_nan() {
+                    let (temperature, radiance) = converted.unwrap_or_else(|| {
                         nan += 1;
                         (f64::NAN, f64::NAN)
-                    } else {
-                        (temperature, radiance)
-                    };
+                    });
                     *t = store(temperature);
                     *l = store(radiance);
                 }
