@@ -33,7 +33,8 @@ use sampling::shift_phase;
 mod transpose;
 mod workspace;
 pub use workspace::ColumnWorkspace;
-use workspace::FramePool;
+pub use workspace::PROFILE_CACHE_BYTES;
+use workspace::{FramePool, ProfileCache};
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -284,6 +285,9 @@ pub struct Imager {
     radial: RadialGrid,
     /// Frame buffers kept between frames (accumulator, row spectra, column workspace).
     frames: FramePool,
+    /// The chunks' OTF profiles, kept between the frames of a sequence when asked
+    /// ([`Imager::keep_chunk_profiles`]).
+    profiles: ProfileCache,
 }
 
 /// A chunk's row spectra larger than this are written with non-temporal stores
@@ -380,6 +384,7 @@ impl Imager {
             tables,
             radial,
             frames: FramePool::default(),
+            profiles: ProfileCache::new(active.len().div_ceil(BANDS_PER_CHUNK)),
         })
     }
 
@@ -435,6 +440,21 @@ impl Imager {
     /// (at 1024²) held, as before the buffers were kept.
     pub fn release_frame_buffers(&self) {
         self.frames.clear();
+    }
+
+    /// Keeps the chunks' OTF profiles for the next frame, up to `max_bytes` of them in all
+    /// (0, the default: none): for a sequence, whose every frame has the same bands, so
+    /// each chunk's profile is built once per run instead of once per frame. The values
+    /// are the same either way. The run's pipeline gives it what its memory budget leaves,
+    /// at most [`PROFILE_CACHE_BYTES`]; a profile takes about 32 B per interval of its ρ
+    /// grid ([`ChunkProfile::heap_bytes`]).
+    pub fn keep_chunk_profiles(&self, max_bytes: usize) {
+        self.profiles.keep(max_bytes);
+    }
+
+    /// Chunk profiles kept so far ([`Imager::keep_chunk_profiles`]).
+    pub fn kept_chunk_profiles(&self) -> usize {
+        self.profiles.kept()
     }
 
     /// Images frame `frame` of `reader`: returns the mean (noise-free) photo-electrons per
@@ -535,7 +555,10 @@ impl Imager {
                                     )
                                 })
                         },
-                        || self.chunk_profile(&wavelengths),
+                        || {
+                            self.profiles
+                                .get_or_build(ci, || self.chunk_profile(&wavelengths))
+                        },
                     );
                     let t2 = Instant::now();
                     drop(views);

@@ -532,6 +532,17 @@ impl ChunkProfile {
         self.values.len() - 1
     }
 
+    /// Bytes the profile holds on the heap (its grid and aerosol tables).
+    pub fn heap_bytes(&self) -> usize {
+        std::mem::size_of_val(self.values.as_slice())
+            + self
+                .aerosol
+                .iter()
+                .flatten()
+                .map(|a| a.table.len() * std::mem::size_of::<f64>())
+                .sum::<usize>()
+    }
+
     /// Every band's chromatic product at radial frequency `rho` ≥ 0 (cycles/rad) into
     /// `out[..bands]` (lanes beyond are 0): one grid position, one linear interpolation
     /// per lane (vectorised). Beyond the grid's end the last value holds.

@@ -6,16 +6,20 @@
 //! in afresh, which on a virtual machine that returns freed memory to its host costs a
 //! host fault per page too (docs/design.md, "Memory pages"). The engine's repeated
 //! buffers are therefore kept explicitly: the column pass's per-worker block buffers for
-//! the chunks of a frame ([`ColumnWorkspace`]), and a frame's accumulator, row spectra and
-//! column workspace for the frames of a sequence ([`FramePool`]).
+//! the chunks of a frame ([`ColumnWorkspace`]), a frame's accumulator, row spectra and
+//! column workspace for the frames of a sequence ([`FramePool`]), and the chunks' OTF
+//! profiles for the frames of a sequence ([`ProfileCache`]).
 
 use std::any::Any;
-use std::sync::Mutex;
+use std::borrow::Cow;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Mutex, OnceLock};
 
 use num_complex::{Complex, Complex64};
 use rayon::prelude::*;
 
 use super::fft::{FftFloat, RealFft2, SpectrumBuffer};
+use super::otf_table::ChunkProfile;
 use crate::memory::vec_on_huge_pages;
 
 /// The per-worker buffers of [`super::accumulate_chunk`] (one block of every band of a chunk,
@@ -182,5 +186,140 @@ impl FramePool {
     /// Frame buffer sets kept now.
     pub fn kept(&self) -> usize {
         self.free.lock().map_or(0, |v| v.len())
+    }
+}
+
+/// Most bytes of chunk profiles a [`ProfileCache`] keeps (the rest are rebuilt per frame):
+/// 64 profiles of the 8 192 intervals the every-component SWIR sensor needs (256 KiB
+/// each), so a sequence of up to 256 such bands reuses all of them and a longer one
+/// does not grow the run's memory with its band count.
+pub const PROFILE_CACHE_BYTES: usize = 16 << 20;
+
+/// The OTF profiles of a frame's chunks ([`ChunkProfile`], one per chunk of bands), kept by
+/// an [`super::Imager`] for the next frame of a sequence: a chunk's profile depends only on
+/// its wavelengths, which are the same in every frame, and building it (refining its ρ
+/// grid against the component tables) is 0.5 ms of the two workers per chunk, 6–9 % of
+/// the CPU time of a 512² sequence. Off by default (a single frame has no use for it);
+/// [`ProfileCache::keep`] turns it on with a byte budget (the run's pipeline gives it what
+/// its memory budget leaves, at most [`PROFILE_CACHE_BYTES`]).
+///
+/// Never blocks: a frame that finds a chunk's profile missing builds it (frames in flight
+/// may both build it; the values are the same, one is kept).
+pub(super) struct ProfileCache {
+    cells: Vec<OnceLock<ChunkProfile>>,
+    /// Bytes kept so far, and the most that may be (0: keep none).
+    bytes: AtomicUsize,
+    budget: AtomicUsize,
+}
+
+impl std::fmt::Debug for ProfileCache {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "ProfileCache {{ budget: {}, kept: {} }}",
+            self.budget.load(Ordering::Relaxed),
+            self.kept()
+        )
+    }
+}
+
+impl ProfileCache {
+    /// A cache for `chunks` chunks, keeping nothing until [`ProfileCache::keep`].
+    pub fn new(chunks: usize) -> Self {
+        ProfileCache {
+            cells: (0..chunks).map(|_| OnceLock::new()).collect(),
+            bytes: AtomicUsize::new(0),
+            budget: AtomicUsize::new(0),
+        }
+    }
+
+    /// Keeps profiles from now on while they hold at most `max_bytes` in all (0: keep no
+    /// more; those kept already stay).
+    pub fn keep(&self, max_bytes: usize) {
+        self.budget.store(max_bytes, Ordering::Relaxed);
+    }
+
+    /// Profiles kept so far.
+    pub fn kept(&self) -> usize {
+        self.cells.iter().filter(|c| c.get().is_some()).count()
+    }
+
+    /// Chunk `chunk`'s profile: the kept one, or `build()`'s, kept for the next frame if
+    /// keeping is on and the budget allows.
+    pub fn get_or_build(
+        &self,
+        chunk: usize,
+        build: impl FnOnce() -> ChunkProfile,
+    ) -> Cow<'_, ChunkProfile> {
+        let Some(cell) = self.cells.get(chunk) else {
+            return Cow::Owned(build());
+        };
+        if let Some(p) = cell.get() {
+            return Cow::Borrowed(p);
+        }
+        let profile = build();
+        let budget = self.budget.load(Ordering::Relaxed);
+        if budget == 0 {
+            return Cow::Owned(profile);
+        }
+        let size = profile.heap_bytes();
+        let before = self.bytes.fetch_add(size, Ordering::Relaxed);
+        if before + size > budget {
+            self.bytes.fetch_sub(size, Ordering::Relaxed);
+            return Cow::Owned(profile);
+        }
+        match cell.set(profile) {
+            Ok(()) => Cow::Borrowed(cell.get().expect("set just above")),
+            Err(profile) => {
+                // Another frame kept the same profile first.
+                self.bytes.fetch_sub(size, Ordering::Relaxed);
+                Cow::Owned(profile)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::imaging::otf_table::RadialTables;
+    use crate::sensor::{Sensor, SensorConfig};
+
+    /// Kept profiles are served again (the same object), only with keeping on, never
+    /// beyond the byte budget (the chunk over it is built and handed back, not kept), and
+    /// a chunk index outside the cache is built every time.
+    #[test]
+    fn profiles_are_kept_within_the_budget_and_served_again() {
+        let cfg = SensorConfig::from_toml_str(
+            include_str!("../../benches/swir_all_components.toml"),
+            "swir.toml",
+            std::path::PathBuf::from("."),
+            &[],
+        )
+        .unwrap();
+        let otf = Sensor::build(&cfg).unwrap().otf().clone();
+        let tables = RadialTables::new(&otf, 1.0, 1.7);
+        let wavelengths: [&[f64]; 3] = [&[1.0, 1.1, 1.2, 1.3], &[1.35, 1.4], &[1.5, 1.6, 1.7]];
+        let build = |c: usize| tables.chunk_profile(&otf, wavelengths[c], 2e4);
+        let bytes: Vec<usize> = (0..3).map(|c| build(c).heap_bytes()).collect();
+        assert!(bytes.iter().all(|b| *b >= 257 * 32));
+
+        let off = ProfileCache::new(3);
+        assert!(matches!(off.get_or_build(0, || build(0)), Cow::Owned(_)));
+        assert_eq!(off.kept(), 0);
+
+        off.keep(bytes[0] + bytes[1]);
+        for c in 0..3 {
+            let p = off.get_or_build(c, || build(c));
+            assert_eq!(*p, build(c), "chunk {c}");
+            assert_eq!(matches!(p, Cow::Borrowed(_)), c < 2, "chunk {c}");
+        }
+        assert_eq!(off.kept(), 2);
+        // Kept ones are served without building; the one over the budget is built again.
+        let again = off.get_or_build(1, || panic!("chunk 1 was kept"));
+        assert_eq!(*again, build(1));
+        assert!(matches!(off.get_or_build(2, || build(2)), Cow::Owned(_)));
+        assert!(matches!(off.get_or_build(7, || build(0)), Cow::Owned(_)));
+        assert_eq!(off.kept(), 2);
     }
 }

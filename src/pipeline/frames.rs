@@ -154,6 +154,17 @@ pub(super) fn image_and_expose(
             None => (k, limit) = (1, "the reader cannot be reopened".into()),
         }
     }
+    // The frames of a sequence reuse the chunks' OTF profiles the first one builds, in
+    // memory the plan leaves free (at most PROFILE_CACHE_BYTES).
+    if to_image > 1 {
+        let planned = job
+            .run_bytes
+            .saturating_add((k as u64).saturating_mul(frame_bytes));
+        let left = crate::limits::max_memory_bytes().saturating_sub(planned);
+        let cap = crate::imaging::PROFILE_CACHE_BYTES as u64;
+        job.stage
+            .keep_chunk_profiles(usize::try_from(left.min(cap)).unwrap_or(0));
+    }
     let mut sink = Sink::new(job, to_image);
     let mut done = Done::default();
     if k == 1 {

@@ -49,6 +49,16 @@ impl ImagingStage {
         })
     }
 
+    /// Lets the imagers keep their chunks' OTF profiles for the next frame, up to
+    /// `max_bytes` in all ([`Imager::keep_chunk_profiles`]; shared evenly between colour
+    /// channels): for a sequence.
+    pub fn keep_chunk_profiles(&self, max_bytes: usize) {
+        let each = max_bytes / self.imagers.len().max(1);
+        for imager in &self.imagers {
+            imager.keep_chunk_profiles(each);
+        }
+    }
+
     /// Frees the frame buffers the imagers keep between frames
     /// ([`Imager::release_frame_buffers`]): for when the run's last frame is imaged.
     pub fn release_frame_buffers(&self) {

@@ -357,3 +357,42 @@ fn a_bad_value_in_a_used_band_stops_the_engine_with_the_readers_message() {
         }
     }
 }
+
+/// A sequence's chunk profiles are built once and reused (`Imager::keep_chunk_profiles`):
+/// the second frame, imaged with the first frame's kept profiles, is bit for bit the
+/// frame imaged by a fresh imager that builds its own, on a cube of several chunks (each
+/// chunk's profile differs, so a profile served to the wrong chunk changes the image);
+/// with keeping off nothing is kept.
+#[test]
+fn kept_chunk_profiles_image_later_frames_identically() {
+    let s = sensor();
+    let ifov = s.ifov_rad() / 3.0;
+    let first = texture(3 * BANDS_PER_CHUNK + 3, 120, 162, ifov);
+    let mut second = first.clone();
+    second.data.mapv_inplace(|v| 1.5 * v + 0.25);
+    let reader = || MemoryCube::sequence(vec![first.clone(), second.clone()], None).unwrap();
+    let meta = &first.meta;
+    let new_imager =
+        || Imager::new(&s, meta, &meta.geometry.unwrap(), DEFAULT_WRAP_TOLERANCE).unwrap();
+    let chunks = new_imager()
+        .weights()
+        .active_bands()
+        .len()
+        .div_ceil(BANDS_PER_CHUNK);
+    assert!(chunks >= 3, "{chunks} chunks");
+
+    let kept = new_imager();
+    kept.keep_chunk_profiles(eoir::imaging::PROFILE_CACHE_BYTES);
+    let mut r = reader();
+    kept.mean_electrons(&mut r, 0, |_, _| {}).unwrap();
+    assert_eq!(kept.kept_chunk_profiles(), chunks);
+    let (reused, _) = kept.mean_electrons(&mut r, 1, |_, _| {}).unwrap();
+
+    let fresh = new_imager();
+    let (built, _) = fresh.mean_electrons(&mut reader(), 1, |_, _| {}).unwrap();
+    assert_eq!(fresh.kept_chunk_profiles(), 0, "keeping is off by default");
+    assert!(built.iter().all(|v| v.is_finite() && *v > 0.0));
+    for ((i, a), b) in reused.indexed_iter().zip(built.iter()) {
+        assert_eq!(a.to_bits(), b.to_bits(), "pixel {i:?}: {a} vs {b}");
+    }
+}
