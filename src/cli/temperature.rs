@@ -170,24 +170,25 @@ pub fn temperature(args: TemperatureArgs) -> Result<()> {
             let instance = DetectorInstance::new(model, seed)?;
             let cal = Calibration::new(&sensor, model, &instance, &opts)?;
             let corrected = cal.correct(dn.view())?;
-            let (t, l, nan) = cal.to_temperature(corrected.view());
+            // The f32 images the products store, as `eoir run` makes them.
+            let (t, l, nan) = cal.to_temperature_f32(corrected.view());
             let netd = cal.netd_analytic_k(300.0).ok();
             (t, Some(l), nan, cal.lut_range_k(), netd)
         }
         Input::Radiance(l) => {
             // Radiance does not pass the ADC: the table spans the physical range.
             let lut = band_radiance_lut(&sensor, opts.radiance_range_k)?;
-            let t = l.mapv(|v| lut.temperature_or_nan(v as f64));
+            let t = l.mapv(|v| lut.temperature_or_nan(v as f64) as f32);
             let nan = t.iter().filter(|v| v.is_nan()).count();
             (t, None, nan, lut.range_k(), None)
         }
     };
     let set = ProductSet::begin(&args.output)?;
     let p = set.staging_dir().join("temperature.tiff");
-    eoir::io::raster::write_tiff_f32(&p, temperature.mapv(|v| v as f32).view())?;
+    eoir::io::raster::write_tiff_f32(&p, temperature.view())?;
     if let Some(l) = radiance {
         let p = set.staging_dir().join("radiance.tiff");
-        eoir::io::raster::write_tiff_f32(&p, l.mapv(|v| v as f32).view())?;
+        eoir::io::raster::write_tiff_f32(&p, l.view())?;
     }
     for p in set.commit()? {
         println!("wrote {}", p.display());
