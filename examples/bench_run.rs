@@ -5,7 +5,10 @@
 //! one frame that stays in cache, and "streamed" over distinct frames as the engine's bands)
 //! and the NumPy/SciPy script `benches/baseline.py` on the same files, back to back, and
 //! prints BENCHMARKS.md tables: one row per case (medians over the repeats) and the
-//! per-transform comparison with `scipy.fft.rfft2` at the same size and precision.
+//! per-transform comparison with `scipy.fft.rfft2` at the same size and precision. The
+//! bounds are measured right after each run and the engine/bound ratios are the medians
+//! of those pairs (the host's load moves the bound by up to 2× within a session; each
+//! pair's ratio, and the range, are printed after the table).
 //!
 //! `cargo build --release && cargo run --release --example bench_run -- [SIZE:BANDS ...]`
 //! (default `1024:128`). Environment: `EOIR_BENCH_DIR` (default /tmp/eoir-bench),
@@ -327,6 +330,28 @@ fn run(
         }
     }
     let _ = one_fft;
+    // Engine/bound per repeat: each bound was measured right after its run.
+    let paired = |b: &[f64]| -> Vec<f64> { engines.iter().zip(b).map(|(e, b)| e / b).collect() };
+    let (in_cache, from_memory) = (paired(&bounds), paired(&streams));
+    let range = |r: &[f64]| {
+        let lo = r.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = r.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        format!("{lo:.2}–{hi:.2}")
+    };
+    let pairs: Vec<String> = engines
+        .iter()
+        .zip(&bounds)
+        .zip(&streams)
+        .map(|((e, b), s)| format!("{e:.3}/{b:.3}/{s:.3}"))
+        .collect();
+    eprintln!(
+        "{n}² × {bands}: engine/bound/streamed bound per repeat (s) {}; engine/bound {} (median {:.2}), engine/streamed {} (median {:.2})",
+        pairs.join(", "),
+        range(&in_cache),
+        median(in_cache.clone()),
+        range(&from_memory),
+        median(from_memory.clone())
+    );
     let (wall, rss, engine, bound) = (median(walls), median(rsss), median(engines), median(bounds));
     let (bw, br) = (median(base_walls), median(base_rsss));
     let streamed = median(streams);
@@ -335,8 +360,8 @@ fn run(
         "| {n}² × {bands} ({}) | {nx} × {ny} | {active} | {wall:.2} | {:.1} | {rss:.0} | {engine:.2} | {bound:.2} | {:.2} | {streamed:.2} | {:.2} | {bw:.2} | {br:.0} | {:.1}× |",
         set.interleave,
         voxels / wall / 1e6,
-        engine / bound,
-        engine / streamed,
+        median(in_cache),
+        median(from_memory),
         bw / wall
     );
     let fft_row = format!(
