@@ -84,12 +84,11 @@ impl Table1d {
                 .into_par_iter()
                 .map(|i| f((i as f64 + 0.5) * step))
                 .collect();
-            let worst = mids
+            let within = !mids
                 .iter()
                 .enumerate()
-                .map(|(i, m)| (m - 0.5 * (values[i] + values[i + 1])).abs())
-                .fold(0.0, f64::max);
-            if worst <= tolerance || 2 * n > MAX_INTERVALS || end <= 0.0 {
+                .any(|(i, m)| (m - 0.5 * (values[i] + values[i + 1])).abs() > tolerance);
+            if within || 2 * n > MAX_INTERVALS || end <= 0.0 {
                 return Table1d {
                     inv_step: if end > 0.0 { n as f64 / end } else { 0.0 },
                     values,
@@ -365,15 +364,14 @@ impl RadialTables {
                     v
                 })
                 .collect();
-            let worst = mids
-                .iter()
-                .enumerate()
-                .flat_map(|(i, m)| {
-                    let (a, b) = (values[i], values[i + 1]);
-                    (0..CHUNK_LANES).map(move |c| (m[c] - 0.5 * (a[c] + b[c])).abs())
-                })
-                .fold(0.0, f64::max);
-            if worst <= PROFILE_MIDPOINT_TOLERANCE || 2 * n > MAX_INTERVALS || end <= 0.0 {
+            // Every band's midpoint error within the tolerance (the first one beyond it
+            // ends the scan: a level that is not fine enough usually fails early).
+            let within = !mids.iter().enumerate().any(|(i, m)| {
+                let (a, b) = (values[i], values[i + 1]);
+                (0..CHUNK_LANES)
+                    .any(|c| (m[c] - 0.5 * (a[c] + b[c])).abs() > PROFILE_MIDPOINT_TOLERANCE)
+            });
+            if within || 2 * n > MAX_INTERVALS || end <= 0.0 {
                 break;
             }
             values = interleave(&values, &mids);
@@ -646,5 +644,87 @@ impl BandProfile {
     /// Number of grid intervals of the ρ table.
     pub fn intervals(&self) -> usize {
         self.chunk.intervals()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sensor::{Sensor, SensorConfig};
+
+    /// The number of intervals the refinement rule asks for, computed the plain way: the
+    /// first `n = start · 2^k` whose largest midpoint error (a max fold, which ignores
+    /// NaN) is within `tolerance`, from `f` evaluated afresh at every level.
+    fn first_passing_level<const L: usize>(
+        f: impl Fn(f64) -> [f64; L],
+        end: f64,
+        start: usize,
+        tolerance: f64,
+    ) -> usize {
+        let mut n = start;
+        loop {
+            let step = end / n as f64;
+            let worst = (0..n)
+                .flat_map(|i| {
+                    let (a, b, m) = (
+                        f(i as f64 * step),
+                        f((i + 1) as f64 * step),
+                        f((i as f64 + 0.5) * step),
+                    );
+                    (0..L).map(move |c| (m[c] - 0.5 * (a[c] + b[c])).abs())
+                })
+                .fold(0.0, f64::max);
+            if worst <= tolerance || 2 * n > MAX_INTERVALS {
+                return n;
+            }
+            n *= 2;
+        }
+    }
+
+    /// The refinement stops at the first level whose midpoints are all within the
+    /// tolerance, as the plain rule does: for component tables (a smooth function, a
+    /// u^{5/3} cusp, one with NaN at a node) and for chunk profiles of the every-component
+    /// SWIR sensor (its aperture cutoffs, turbulence cusp and aerosol).
+    #[test]
+    fn refinement_stops_at_the_first_level_within_tolerance() {
+        let tol = COMPONENT_MIDPOINT_TOLERANCE;
+        let smooth = |x: f64| (3.0 * x).sin();
+        let cusp = |x: f64| (-3.44 * x.powf(5.0 / 3.0)).exp();
+        let nan_at_0 = |x: f64| if x == 0.0 { f64::NAN } else { x.cos() };
+        for (f, start) in [
+            (&smooth as &(dyn Fn(f64) -> f64 + Sync), 8),
+            (&cusp, 4096),
+            (&nan_at_0, 16),
+        ] {
+            let t = Table1d::build(f, 2.0, 0.0, start, tol);
+            assert_eq!(
+                t.len() - 1,
+                first_passing_level(|x| [f(x)], 2.0, start, tol)
+            );
+        }
+
+        let cfg = SensorConfig::from_toml_str(
+            include_str!("../../benches/swir_all_components.toml"),
+            "swir.toml",
+            std::path::PathBuf::from("."),
+            &[],
+        )
+        .unwrap();
+        let otf = Sensor::build(&cfg).unwrap().otf().clone();
+        let tables = RadialTables::new(&otf, 1.0, 1.7);
+        let rho_max = 14_142.0;
+        for wavelengths in [[1.0, 1.1, 1.2, 1.3], [1.35, 1.45, 1.55, 1.7]] {
+            let p = tables.chunk_profile(&otf, &wavelengths, rho_max);
+            let lane = |rho: f64| {
+                wavelengths.map(|l| {
+                    let r0 = otf.fried_r0_m(l);
+                    let e = tables.band_end(l, r0, rho_max);
+                    tables.chromatic_at(rho.min(e), l, r0, 0.0)
+                })
+            };
+            let want = first_passing_level(lane, rho_max, 256, PROFILE_MIDPOINT_TOLERANCE);
+            assert!(want >= 1024, "{want}");
+            assert_eq!(p.intervals(), want, "{wavelengths:?}");
+        }
     }
 }
