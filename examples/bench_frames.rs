@@ -6,7 +6,8 @@
 //! alternating the two back to back, and prints a BENCHMARKS.md table row per case: median
 //! wall, CPU time (user + system) and peak RSS (`/usr/bin/time -v`), engine total
 //! (`timings_s.total`), the ratio
-//! sequential / parallel, and the load (`/proc/loadavg`) before and after.
+//! sequential / parallel (the median of the back-to-back pairs' wall ratios, as the host's
+//! load moves between pairs), and the load (`/proc/loadavg`) before and after.
 //!
 //! `cargo build --release && cargo run --release --example bench_frames -- [SIZE:BANDS:FRAMES ...]`
 //! (default `256:32:16 512:32:16`). Environment: `EOIR_BENCH_DIR` (default
@@ -179,7 +180,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             col(&many, 2),
             col(&many, 3),
             col(&many, 1),
-            col(&one, 0) / col(&many, 0),
+            median(one.iter().zip(&many).map(|(a, b)| a.0 / b.0).collect()),
             loadavg()
         );
     }
