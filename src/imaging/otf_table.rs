@@ -647,10 +647,27 @@ impl BandProfile {
     }
 }
 
+/// The system OTF of the benchmarks' every-component SWIR sensor
+/// (`benches/swir_all_components.toml`: aperture cutoffs, turbulence cusp, aerosol), for
+/// the imaging module's unit tests.
+#[cfg(test)]
+pub(super) fn bench_swir_otf() -> SystemOtf {
+    let cfg = crate::sensor::SensorConfig::from_toml_str(
+        include_str!("../../benches/swir_all_components.toml"),
+        "swir_all_components.toml",
+        std::path::PathBuf::from("."),
+        &[],
+    )
+    .expect("the bench sensor parses");
+    crate::sensor::Sensor::build(&cfg)
+        .expect("the bench sensor builds")
+        .otf()
+        .clone()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sensor::{Sensor, SensorConfig};
 
     /// The number of intervals the refinement rule asks for, computed the plain way: the
     /// first `n = start · 2^k` whose largest midpoint error (a max fold, which ignores
@@ -703,14 +720,7 @@ mod tests {
             );
         }
 
-        let cfg = SensorConfig::from_toml_str(
-            include_str!("../../benches/swir_all_components.toml"),
-            "swir.toml",
-            std::path::PathBuf::from("."),
-            &[],
-        )
-        .unwrap();
-        let otf = Sensor::build(&cfg).unwrap().otf().clone();
+        let otf = bench_swir_otf();
         let tables = RadialTables::new(&otf, 1.0, 1.7);
         let rho_max = 14_142.0;
         for wavelengths in [[1.0, 1.1, 1.2, 1.3], [1.35, 1.45, 1.55, 1.7]] {

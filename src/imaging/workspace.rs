@@ -282,22 +282,14 @@ impl ProfileCache {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::imaging::otf_table::RadialTables;
-    use crate::sensor::{Sensor, SensorConfig};
+    use crate::imaging::otf_table::{bench_swir_otf, RadialTables};
 
     /// Kept profiles are served again (the same object), only with keeping on, never
     /// beyond the byte budget (the chunk over it is built and handed back, not kept), and
     /// a chunk index outside the cache is built every time.
     #[test]
     fn profiles_are_kept_within_the_budget_and_served_again() {
-        let cfg = SensorConfig::from_toml_str(
-            include_str!("../../benches/swir_all_components.toml"),
-            "swir.toml",
-            std::path::PathBuf::from("."),
-            &[],
-        )
-        .unwrap();
-        let otf = Sensor::build(&cfg).unwrap().otf().clone();
+        let otf = bench_swir_otf();
         let tables = RadialTables::new(&otf, 1.0, 1.7);
         let wavelengths: [&[f64]; 3] = [&[1.0, 1.1, 1.2, 1.3], &[1.35, 1.4], &[1.5, 1.6, 1.7]];
         let build = |c: usize| tables.chunk_profile(&otf, wavelengths[c], 2e4);
