@@ -6,7 +6,8 @@
 //! Many Linux systems enable transparent huge pages on request only (`madvise` mode), so
 //! these buffers ask for them ([`advise_huge_pages`]): 2 MiB pages, 512 times fewer
 //! entries and faults. The advice is a hint: values never depend on it, and where the
-//! kernel declines (or off Linux) nothing changes.
+//! kernel declines (or off Linux) nothing changes. [`prefetch_read`] is the cache's
+//! counterpart: it asks for lines ahead of a read, again a hint.
 
 /// Size of a transparent huge page on x86-64 and most other Linux targets, bytes.
 const HUGE_PAGE_BYTES: usize = 2 << 20;
@@ -57,6 +58,24 @@ pub fn vec_on_huge_pages<V: Clone + Send + Sync>(len: usize, value: V) -> Vec<V>
     // SAFETY: every one of the first `len` elements was written just above.
     unsafe { v.set_len(len) };
     v
+}
+
+/// Asks the CPU to bring the cache lines of `data` into its caches ahead of a read: a hint
+/// (values never depend on it; it never faults; nothing off x86-64).
+#[inline]
+pub fn prefetch_read<V>(data: &[V]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        const LINE: usize = 64;
+        let p = data.as_ptr() as *const i8;
+        for offset in (0..std::mem::size_of_val(data)).step_by(LINE) {
+            // SAFETY: `p + offset` lies inside `data`; a prefetch only hints the cache.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.add(offset)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = data;
 }
 
 #[cfg(test)]
