@@ -71,19 +71,33 @@ impl RadialGrid {
     }
 
     /// The samples of `grid` with the achromatic product `achromatic(u, v)` at fx index u,
-    /// fy index v (for example [`crate::sensor::AchromaticSampler::at`]), evaluated once
-    /// per sample straight into the stored layout (no frame-sized f64 array).
+    /// fy index v, evaluated once per sample straight into the stored layout (no
+    /// frame-sized f64 array). The engine fills whole columns ([`RadialGrid::from_columns`]).
     pub fn from_fn(grid: &FrequencyGrid, achromatic: impl Fn(usize, usize) -> f64 + Sync) -> Self {
+        Self::from_columns(grid, |u, column| {
+            for (v, a) in column.iter_mut().enumerate() {
+                *a = achromatic(u, v);
+            }
+        })
+    }
+
+    /// The samples of `grid` with the achromatic product of each column filled by
+    /// `column(u, out)`: `out[v]` the product at fx index u, fy index v (for example
+    /// [`crate::sensor::AchromaticSampler::column`]), columns in parallel, each through a
+    /// per-worker f64 column into the stored f32.
+    pub fn from_columns(grid: &FrequencyGrid, column: impl Fn(usize, &mut [f64]) + Sync) -> Self {
         let (rows, cols) = (grid.fy.len(), grid.fx.len());
         let half = stored_rows(rows);
         let mut a = vec_on_huge_pages(rows * cols, 0.0f32);
-        a.par_chunks_mut(rows.max(1))
-            .enumerate()
-            .for_each(|(u, col)| {
-                for (v, x) in col.iter_mut().enumerate() {
-                    *x = achromatic(u, v) as f32;
+        a.par_chunks_mut(rows.max(1)).enumerate().for_each_init(
+            || vec![0.0f64; rows],
+            |scratch, (u, col)| {
+                column(u, scratch);
+                for (x, s) in col.iter_mut().zip(scratch.iter()) {
+                    *x = *s as f32;
                 }
-            });
+            },
+        );
         let mut rho = vec_on_huge_pages(if rows == 0 { 0 } else { cols * half }, 0.0f64);
         rho.par_iter_mut()
             .enumerate()
@@ -807,7 +821,7 @@ mod tests {
         let spacing = 2e-5;
         let grid = FrequencyGrid::real_fft(ny, nx, spacing, spacing);
         let sampler = otf.achromatic_sampler(&grid);
-        let radial = RadialGrid::from_fn(&grid, |u, v| sampler.at(u, v));
+        let radial = RadialGrid::from_columns(&grid, |u, c| sampler.column(u, c));
         let tables = RadialTables::new(&otf, 1.0, 1.7);
         let profile = tables.chunk_profile(&otf, &[1.0, 1.2, 1.4, 1.7], radial.rho_max());
         let weights = [0.7, 1.3, 2.5, 0.11];

@@ -367,7 +367,7 @@ impl Imager {
         let (radial, tables) = rayon::join(
             || {
                 let sampler = otf.achromatic_sampler(&grid);
-                RadialGrid::from_fn(&grid, |u, v| sampler.at(u, v))
+                RadialGrid::from_columns(&grid, |u, c| sampler.column(u, c))
             },
             || RadialTables::new(&otf, lo, hi),
         );

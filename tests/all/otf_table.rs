@@ -341,8 +341,9 @@ fn slant_path_at_equal_heights_equals_horizontal_in_the_cascade() {
 /// jitter and an anisotropic Gaussian, on a grid with negative row frequencies and a
 /// non-square frame. The difference is within 1e-15 · (1 + |t|), with t the larger of
 /// the smear's sine arguments (the conditioning of the sinc in them). The engine's
-/// per-sample `achromatic_sampler` gives `on_grid`'s values bit for bit, and the grid it
-/// feeds (`RadialGrid::from_fn`) the f32 of each.
+/// per-sample `achromatic_sampler` gives `on_grid`'s values bit for bit, its column-wise
+/// fill the same, and the grid it feeds (`RadialGrid::from_fn`, `from_columns`) the f32
+/// of each.
 #[test]
 fn achromatic_grid_matches_the_pointwise_product() {
     for smear_rad in [7e-5, 2e-3] {
@@ -369,6 +370,18 @@ fn achromatic_grid_matches_the_pointwise_product() {
         assert_eq!(a.dim(), (37, 26));
         let sampler = otf.achromatic_sampler(&grid);
         let radial = eoir::imaging::RadialGrid::from_fn(&grid, |u, v| sampler.at(u, v));
+        // The engine's column-wise fill gives the same grid, and each column the
+        // per-sample values bit for bit.
+        let by_columns =
+            eoir::imaging::RadialGrid::from_columns(&grid, |u, c| sampler.column(u, c));
+        assert_eq!(by_columns, radial);
+        let mut column = vec![0.0; grid.fy.len()];
+        for k in 0..grid.fx.len() {
+            sampler.column(k, &mut column);
+            for (j, c) in column.iter().enumerate() {
+                assert_eq!(c.to_bits(), sampler.at(k, j).to_bits(), "column ({j}, {k})");
+            }
+        }
         let (sin_t, cos_t) = 33f64.to_radians().sin_cos();
         let mut distinct = std::collections::BTreeSet::new();
         let (mut cancelling, mut worst) = (0, 0.0f64);
