@@ -333,7 +333,8 @@ fn accumulate_block_full<T: FftFloat>(
 /// ρ as the four lanes:
 /// 1. ρ and A of the eight samples; the table position `i` and `frac` computed as
 ///    [`ChunkProfile::eval_all`] computes them (`min(⌊max(t, 0)⌋, len − 2)` equals its
-///    saturating `t as u32` clamped to `len − 2`, and `min(t − i, 1)` its `frac`);
+///    saturating `t as u32` clamped to `len − 2`, and `min(t − i, 1)` its `frac`), a step
+///    ahead of their use so that their latency overlaps the step before;
 /// 2. the two table rows of each ρ loaded (their lanes are the bands) and transposed
 ///    4 × 4 so that the lanes are the samples;
 /// 3. per band c: `g = a + frac·(b − a)`, 0 beyond the band's cut, times the aerosol
@@ -451,9 +452,31 @@ unsafe fn accumulate_block_f32_avx2(
         // Rows 1 + k … 4 + k (ρ = rho[1 + k .. 5 + k]) and their mirrors rows − 4 − k …
         // rows − 1 − k (the same ρ, reversed) share one table lookup.
         let steps = upper / 4;
+        // Step q's table positions and fractions (rows 1 + 4q … 4 + 4q), computed one
+        // step ahead: their conversion and lane extraction then overlap the step before
+        // instead of heading its chain of dependent loads.
+        let position = |q: usize| {
+            let rho4 = _mm256_loadu_pd(rho[1 + 4 * q..5 + 4 * q].as_ptr());
+            let t = _mm256_mul_pd(rho4, inv_step);
+            // 0 ≤ max(t, 0) clamped to len − 2 < 2^22: the conversion to i32 is exact.
+            let pos = _mm256_cvttpd_epi32(_mm256_min_pd(_mm256_max_pd(t, zero), top));
+            let frac = _mm256_min_pd(_mm256_sub_pd(t, _mm256_cvtepi32_pd(pos)), one);
+            let at = [
+                _mm_cvtsi128_si32(pos),
+                _mm_extract_epi32::<1>(pos),
+                _mm_extract_epi32::<2>(pos),
+                _mm_extract_epi32::<3>(pos),
+            ];
+            (at, frac)
+        };
+        let mut ahead = (steps > 0).then(|| position(0));
         for q in 0..steps {
             let k = 4 * q;
             let (lo, hi) = (1 + k, rows - 4 - k);
+            let (at, frac) = ahead.take().unwrap_or_else(|| position(q));
+            if q + 1 < steps {
+                ahead = Some(position(q + 1));
+            }
             prefetch(lo, hi);
             let r4 = &rho[lo..lo + 4];
             let rho4 = _mm256_loadu_pd(r4.as_ptr());
@@ -476,16 +499,6 @@ unsafe fn accumulate_block_f32_avx2(
                 scalar_rows(acc, hi, 4, r4, true);
                 continue;
             }
-            let t = _mm256_mul_pd(rho4, inv_step);
-            // 0 ≤ max(t, 0) clamped to len − 2 < 2^22: the conversion to i32 is exact.
-            let pos = _mm256_cvttpd_epi32(_mm256_min_pd(_mm256_max_pd(t, zero), top));
-            let frac = _mm256_min_pd(_mm256_sub_pd(t, _mm256_cvtepi32_pd(pos)), one);
-            let at = [
-                _mm_cvtsi128_si32(pos),
-                _mm_extract_epi32::<1>(pos),
-                _mm_extract_epi32::<2>(pos),
-                _mm_extract_epi32::<3>(pos),
-            ];
             // SAFETY: each position is in 0 ..= len − 2 (clamped above), so rows i and
             // i + 1 are inside `values`.
             let row = |j: usize, d: usize| {
