@@ -403,7 +403,7 @@ unsafe fn accumulate_block_f32_avx2(
     // The next column's accumulator, A and ρ are asked into the cache a step at a time
     // while this column is worked on: each column is a few 4 KiB pages of each array, and
     // the hardware's stream prefetcher stops at every page (measured: `otf_and_accumulate`
-    // 0.94 of its time without, products unchanged). A hint, with no effect on values.
+    // takes 0.94 of its time without the hints). A hint, with no effect on values.
     let (acc_all, amp_all, rho_all) = (
         acc.as_ptr(),
         columns.achromatic.as_ptr(),
