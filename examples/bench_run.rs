@@ -333,6 +333,8 @@ fn run(
     // Engine/bound per repeat: each bound was measured right after its run.
     let paired = |b: &[f64]| -> Vec<f64> { engines.iter().zip(b).map(|(e, b)| e / b).collect() };
     let (in_cache, from_memory) = (paired(&bounds), paired(&streams));
+    let (in_cache_median, from_memory_median) =
+        (median(in_cache.clone()), median(from_memory.clone()));
     let range = |r: &[f64]| {
         let lo = r.iter().copied().fold(f64::INFINITY, f64::min);
         let hi = r.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -348,9 +350,9 @@ fn run(
         "{n}² × {bands}: engine/bound/streamed bound per repeat (s) {}; engine/bound {} (median {:.2}), engine/streamed {} (median {:.2})",
         pairs.join(", "),
         range(&in_cache),
-        median(in_cache.clone()),
+        in_cache_median,
         range(&from_memory),
-        median(from_memory.clone())
+        from_memory_median
     );
     let (wall, rss, engine, bound) = (median(walls), median(rsss), median(engines), median(bounds));
     let (bw, br) = (median(base_walls), median(base_rsss));
@@ -360,8 +362,8 @@ fn run(
         "| {n}² × {bands} ({}) | {nx} × {ny} | {active} | {wall:.2} | {:.1} | {rss:.0} | {engine:.2} | {bound:.2} | {:.2} | {streamed:.2} | {:.2} | {bw:.2} | {br:.0} | {:.1}× |",
         set.interleave,
         voxels / wall / 1e6,
-        median(in_cache),
-        median(from_memory),
+        in_cache_median,
+        from_memory_median,
         bw / wall
     );
     let fft_row = format!(

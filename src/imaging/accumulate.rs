@@ -104,7 +104,7 @@ impl RadialGrid {
             .for_each(|(i, r)| *r = grid.fx[i / half].hypot(grid.fy[i % half]));
         RadialGrid {
             rows,
-            rho_max: rho.iter().copied().fold(0.0, f64::max),
+            rho_max: grid.rho_max(),
             rho,
             achromatic: a,
         }

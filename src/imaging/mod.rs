@@ -369,12 +369,7 @@ impl Imager {
                 let sampler = otf.achromatic_sampler(&grid);
                 RadialGrid::from_columns(&grid, |u, c| sampler.column(u, c))
             },
-            || {
-                // The grid's largest ρ (ρ = hypot(fx, fy) grows with |fx| and |fy|).
-                let largest = |f: &[f64]| f.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
-                let rho_max = largest(&grid.fx).hypot(largest(&grid.fy));
-                RadialTables::covering(&otf, lo, hi, rho_max)
-            },
+            || RadialTables::covering(&otf, lo, hi, grid.rho_max()),
         );
         Ok(Imager {
             sensor: sensor.clone(),

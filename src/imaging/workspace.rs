@@ -198,8 +198,9 @@ pub const PROFILE_CACHE_BYTES: usize = 16 << 20;
 /// The OTF profiles of a frame's chunks ([`ChunkProfile`], one per chunk of bands), kept by
 /// an [`super::Imager`] for the next frame of a sequence: a chunk's profile depends only on
 /// its wavelengths, which are the same in every frame, and building it (refining its ρ
-/// grid against the component tables) is 0.5 ms of the two workers per chunk, 6–9 % of
-/// the CPU time of a 512² sequence. Off by default (a single frame has no use for it);
+/// grid against the component tables) takes 0.36–0.38 ms per chunk for the benchmark
+/// SWIR sensor (`examples/bench_profile.rs`; 6–9 % of the CPU time of a 512² sequence
+/// before profiles were kept). Off by default (a single frame has no use for it);
 /// [`ProfileCache::keep`] turns it on with a byte budget (the run's pipeline gives it what
 /// its memory budget leaves, at most [`PROFILE_CACHE_BYTES`]).
 ///

@@ -616,6 +616,13 @@ impl FrequencyGrid {
             .collect();
         FrequencyGrid { fy, fx }
     }
+
+    /// The largest radial frequency ρ = hypot(fx, fy) on the grid, cycles/rad (0 for an
+    /// empty grid): at the largest |fx| and |fy|, since hypot grows with each.
+    pub fn rho_max(&self) -> f64 {
+        let largest = |f: &[f64]| f.iter().fold(0.0, |m: f64, x| m.max(x.abs()));
+        largest(&self.fx).hypot(largest(&self.fy))
+    }
 }
 
 /// A [`SystemOtf`] bound to a frequency grid, with its wavelength-independent part cached.
@@ -665,6 +672,21 @@ impl GridOtf<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The grid's largest ρ is the largest hypot over every sample (brute force), for
+    /// even and odd axes and an empty grid.
+    #[test]
+    fn rho_max_is_the_largest_sample() {
+        for (rows, cols) in [(8, 10), (9, 7), (1, 1), (37, 50)] {
+            let g = FrequencyGrid::real_fft(rows, cols, 4e-5, 3e-5);
+            let brute =
+                g.fx.iter()
+                    .flat_map(|x| g.fy.iter().map(move |y| x.hypot(*y)))
+                    .fold(0.0, f64::max);
+            assert_eq!(g.rho_max().to_bits(), brute.to_bits(), "{rows} x {cols}");
+        }
+        assert_eq!(FrequencyGrid::real_fft(0, 0, 1.0, 1.0).rho_max(), 0.0);
+    }
 
     /// `sin(t)/t` of a sum of two arguments matches the direct sinc of the sum within a
     /// few ulp of (1 + |tx| + |ty|)/|t|·ε, including pairs that cancel to a tiny sum, where
