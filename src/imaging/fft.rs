@@ -94,6 +94,16 @@ pub trait FftFloat: FftNum + Copy {
         super::r2c::untangle_pairs_scalar(tw, left, right);
     }
 
+    /// Whether every value is physical radiance (finite and ≥ 0, at most `f32::MAX`):
+    /// [`crate::scene::radiance_is_physical`] for values that are exact copies of f32
+    /// input samples, as the image part of a padded row is.
+    fn all_physical(values: &[Self]) -> bool {
+        let max = f32::MAX as f64;
+        values
+            .iter()
+            .fold(true, |ok, v| ok & (v.widen() >= 0.0) & (v.widen() <= max))
+    }
+
     /// The same slices typed as f32, if `Self` is f32 (for loops written for f32 data
     /// only, such as the AVX2 accumulation of [`super::accumulate_chunk`]); `None` for f64.
     fn as_f32_slices<const N: usize>(
@@ -105,6 +115,9 @@ pub trait FftFloat: FftNum + Copy {
 }
 
 impl FftFloat for f32 {
+    fn all_physical(values: &[Self]) -> bool {
+        crate::scene::radiance_is_physical(values)
+    }
     fn as_f32_slices<const N: usize>(
         slices: [&[Complex<Self>]; N],
     ) -> Option<[&[Complex<f32>]; N]> {

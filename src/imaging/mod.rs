@@ -648,9 +648,9 @@ impl Imager {
     }
 
     /// [`Imager::rows_forward_band`], and with `unphysical` given, every image row is
-    /// tested ([`crate::scene::radiance_is_physical`]) just before it is padded, while it
-    /// is in cache: a NaN, ±Inf or negative value sets the flag (the caller then stops
-    /// and names the value, [`crate::io::DeferredCheck::run`]).
+    /// tested ([`crate::scene::radiance_is_physical`]) in the padded row, just after it
+    /// is copied there, while it is in cache: a NaN, ±Inf or negative value sets the flag
+    /// (the caller then stops and names the value, [`crate::io::DeferredCheck::run`]).
     pub fn rows_forward_band_checked<T: FftFloat>(
         &self,
         fft: &RealFft2<T>,
@@ -659,19 +659,20 @@ impl Imager {
         unphysical: Option<&AtomicBool>,
     ) {
         let image_rows = self.pad.y.image_range();
+        let image_cols = self.pad.x.image_range();
         fft.rows_forward_transposed(
             |r, row| {
+                self.pad.row(&plane, r, row);
+                // An image row's image part is a copy of the plane row (as f32 or exactly
+                // widened; a NaN or ±Inf stays non-physical through the blend of a
+                // strided row): checked there, in cache, rather than in the plane, where
+                // the check was the row's first read from memory (with the AVX2 test:
+                // `forward_fft` 0.91 of its time, and within 2 % of no check at all).
                 if let (Some(flag), true) = (unphysical, image_rows.contains(&r)) {
-                    let source = plane.row(r - image_rows.start);
-                    let ok = match source.as_slice() {
-                        Some(s) => crate::scene::radiance_is_physical(s),
-                        None => source.iter().all(|v| *v >= 0.0 && *v <= f32::MAX),
-                    };
-                    if !ok {
+                    if !T::all_physical(&row[image_cols.clone()]) {
                         flag.store(true, Ordering::Relaxed);
                     }
                 }
-                self.pad.row(&plane, r, row)
             },
             rowspec,
             self.row_stores(),
