@@ -68,7 +68,8 @@ pub struct Table1d {
 
 impl Table1d {
     /// Tabulates `f` on `[0, end]` starting from `intervals` intervals and doubling until
-    /// every midpoint is within `tolerance` of `f` (or `MAX_INTERVALS`, 2^22, is reached).
+    /// every midpoint is within `tolerance` of `f` (or `MAX_INTERVALS`, 2^22, is reached;
+    /// see [`refine`]).
     pub fn build(
         f: impl Fn(f64) -> f64 + Sync,
         end: f64,
@@ -76,29 +77,12 @@ impl Table1d {
         intervals: usize,
         tolerance: f64,
     ) -> Self {
-        let mut n = intervals.max(8);
-        let mut values: Vec<f64> = sample(&f, end, n);
-        loop {
-            let step = end / n as f64;
-            // Midpoints are the new samples of the doubled table: compute them once.
-            let mids: Vec<f64> = (0..n)
-                .into_par_iter()
-                .map(|i| f((i as f64 + 0.5) * step))
-                .collect();
-            let within = !mids
-                .iter()
-                .enumerate()
-                .any(|(i, m)| (m - 0.5 * (values[i] + values[i + 1])).abs() > tolerance);
-            if within || 2 * n > MAX_INTERVALS || end <= 0.0 {
-                return Table1d {
-                    inv_step: if end > 0.0 { n as f64 / end } else { 0.0 },
-                    values,
-                    end,
-                    beyond,
-                };
-            }
-            values = interleave(&values, &mids);
-            n *= 2;
+        let (values, n) = refine(|x| [f(x)], end, intervals.max(8), tolerance);
+        Table1d {
+            inv_step: if end > 0.0 { n as f64 / end } else { 0.0 },
+            values: values.into_iter().map(|[v]| v).collect(),
+            end,
+            beyond,
         }
     }
 
@@ -128,6 +112,45 @@ impl Table1d {
     }
 }
 
+/// The samples of `f` (`L` lanes at each argument) on a uniform grid over `[0, end]`, and
+/// its number of intervals n: from `start` intervals, the step halved until every lane's
+/// value at every interval midpoint is within `tolerance` of the linear interpolation of
+/// the interval's ends (a NaN never counts as beyond it), or until n would pass
+/// `MAX_INTERVALS`. The scan of a level stops at the first midpoint beyond the
+/// tolerance (a level that is not fine enough usually fails early), and a level's
+/// midpoints are the new samples of the next, so `f` is evaluated once per node. The
+/// refinement of [`Table1d::build`] (one lane) and of [`RadialTables::chunk_profile`]
+/// (a chunk's bands).
+fn refine<const L: usize>(
+    f: impl Fn(f64) -> [f64; L] + Sync,
+    end: f64,
+    start: usize,
+    tolerance: f64,
+) -> (Vec<[f64; L]>, usize) {
+    // `count` arguments `(i + offset)·step` of the grid of n intervals.
+    let sample = |n: usize, offset: f64, count: usize| -> Vec<[f64; L]> {
+        let step = end / n as f64;
+        (0..count)
+            .into_par_iter()
+            .map(|i| f((i as f64 + offset) * step))
+            .collect()
+    };
+    let mut n = start;
+    let mut values = sample(n, 0.0, n + 1);
+    loop {
+        let mids = sample(n, 0.5, n);
+        let within = !mids.iter().enumerate().any(|(i, m)| {
+            let (a, b) = (values[i], values[i + 1]);
+            (0..L).any(|c| (m[c] - 0.5 * (a[c] + b[c])).abs() > tolerance)
+        });
+        if within || 2 * n > MAX_INTERVALS || end <= 0.0 {
+            return (values, n);
+        }
+        values = interleave(&values, &mids);
+        n *= 2;
+    }
+}
+
 /// The samples of a table with its step halved: `values[0], mids[0], values[1], …,
 /// mids[n−1], values[n]` (`mids[i]` the function at the midpoint of interval i).
 fn interleave<V: Copy>(values: &[V], mids: &[V]) -> Vec<V> {
@@ -138,14 +161,6 @@ fn interleave<V: Copy>(values: &[V], mids: &[V]) -> Vec<V> {
     }
     finer.extend(values.last());
     finer
-}
-
-fn sample(f: &(impl Fn(f64) -> f64 + Sync), end: f64, n: usize) -> Vec<f64> {
-    let step = end / n as f64;
-    (0..=n)
-        .into_par_iter()
-        .map(|i| f(i as f64 * step))
-        .collect()
 }
 
 /// The chromatic components of a [`SystemOtf`] as 1-D tables in their λ-scaled arguments,
@@ -379,47 +394,14 @@ impl RadialTables {
         // Tabulated: each band's function held constant beyond its end (continuous, so
         // the refinement converges); `eval_all` zeroes it there (the jump at the cutoff
         // is exact, not interpolated).
-        let f = |rho: f64, lanes: &mut [f64; CHUNK_LANES]| {
+        let f = |rho: f64| {
+            let mut lanes = [0.0; CHUNK_LANES];
             for (v, (l, r0, w020, e)) in lanes.iter_mut().zip(&params) {
                 *v = self.chromatic_at(rho.min(*e), *l, *r0, *w020);
             }
+            lanes
         };
-        let mut n = 256usize;
-        let sample = |n: usize| -> Vec<[f64; CHUNK_LANES]> {
-            let step = end / n as f64;
-            (0..=n)
-                .into_par_iter()
-                .map(|i| {
-                    let mut v = [0.0; CHUNK_LANES];
-                    f(i as f64 * step, &mut v);
-                    v
-                })
-                .collect()
-        };
-        let mut values = sample(n);
-        loop {
-            let step = end / n as f64;
-            let mids: Vec<[f64; CHUNK_LANES]> = (0..n)
-                .into_par_iter()
-                .map(|i| {
-                    let mut v = [0.0; CHUNK_LANES];
-                    f((i as f64 + 0.5) * step, &mut v);
-                    v
-                })
-                .collect();
-            // Every band's midpoint error within the tolerance (the first one beyond it
-            // ends the scan: a level that is not fine enough usually fails early).
-            let within = !mids.iter().enumerate().any(|(i, m)| {
-                let (a, b) = (values[i], values[i + 1]);
-                (0..CHUNK_LANES)
-                    .any(|c| (m[c] - 0.5 * (a[c] + b[c])).abs() > PROFILE_MIDPOINT_TOLERANCE)
-            });
-            if within || 2 * n > MAX_INTERVALS || end <= 0.0 {
-                break;
-            }
-            values = interleave(&values, &mids);
-            n *= 2;
-        }
+        let (values, n) = refine(f, end, 256, PROFILE_MIDPOINT_TOLERANCE);
         let aerosol: Vec<Option<AerosolFactor>> = wavelengths_um
             .iter()
             .map(

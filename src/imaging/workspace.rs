@@ -198,7 +198,7 @@ pub const PROFILE_CACHE_BYTES: usize = 16 << 20;
 /// The OTF profiles of a frame's chunks ([`ChunkProfile`], one per chunk of bands), kept by
 /// an [`super::Imager`] for the next frame of a sequence: a chunk's profile depends only on
 /// its wavelengths, which are the same in every frame, and building it (refining its ρ
-/// grid against the component tables) takes 0.36–0.38 ms per chunk for the benchmark
+/// grid against the component tables) takes 0.33–0.35 ms per chunk for the benchmark
 /// SWIR sensor (`examples/bench_profile.rs`; 6–9 % of the CPU time of a 512² sequence
 /// before profiles were kept). Off by default (a single frame has no use for it);
 /// [`ProfileCache::keep`] turns it on with a byte budget (the run's pipeline gives it what
