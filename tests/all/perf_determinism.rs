@@ -278,19 +278,24 @@ fn mapped_read_and_in_memory_planes_image_identically() {
 /// A NaN, ±Inf or negative value in a band the engine uses stops the run with the
 /// reader's own message (band, wavelength, first bad pixel), whether the plane was mapped
 /// and checked row by row inside the row pass or read and checked by the reader: first
-/// band, a band of a later chunk, the last band; first and last pixel of the image.
+/// band, a band of a later chunk, the last band; first and last pixel of the image; f32
+/// and f64 transforms in turn (the row pass checks the padded row, in the transform's type).
 #[test]
 fn a_bad_value_in_a_used_band_stops_the_engine_with_the_readers_message() {
     let s = sensor();
     let clean = cases(&s).swap_remove(0);
-    let imager = Imager::new(
-        &s,
-        &clean.meta,
-        &clean.meta.geometry.unwrap(),
-        DEFAULT_WRAP_TOLERANCE,
-    )
-    .unwrap();
-    let active = imager.weights().active_bands();
+    let imager = |precision| {
+        Imager::new(
+            &s,
+            &clean.meta,
+            &clean.meta.geometry.unwrap(),
+            DEFAULT_WRAP_TOLERANCE,
+        )
+        .unwrap()
+        .with_precision(precision)
+    };
+    let imagers = [imager(FftPrecision::F32), imager(FftPrecision::F64)];
+    let active = imagers[0].weights().active_bands();
     assert!(active.len() > 2 * BANDS_PER_CHUNK);
     let (_, rows, cols) = clean.data.dim();
     let dir = tempfile::tempdir().unwrap();
@@ -329,7 +334,7 @@ fn a_bad_value_in_a_used_band_stops_the_engine_with_the_readers_message() {
                 Box::new(eoir::io::npy::NpyReader::open_with(&npy, &opts).unwrap()),
             ];
             for (r, f) in readers.iter_mut().zip(fresh.iter_mut()) {
-                let got = imager
+                let got = imagers[k % 2]
                     .mean_electrons(r.as_mut(), 0, |_, _| {})
                     .unwrap_err()
                     .to_string();
