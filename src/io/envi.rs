@@ -75,7 +75,7 @@ use crate::error::{Error, Result};
 use crate::scene::{check_radiance_plane, Cube, CubeMeta};
 
 use super::binary::{
-    check_size, decode_into, decode_strided, read_at, read_samples, PlanePool, SampleType,
+    check_size, decode_interleaved, decode_into, read_at, read_samples, PlanePool, SampleType,
     READ_BLOCK_BYTES,
 };
 use super::mapped::{map_plane, BandPlanes, DeferredCheck};
@@ -989,60 +989,67 @@ impl EnviReader {
             .iter()
             .map(|_| Vec::with_capacity(rows * cols))
             .collect();
-        let mut buf = vec![0u8; group * row_bytes];
+        // Whole f32 words, so that native f32 samples are read in place (4-byte aligned).
+        let mut words = vec![0u32; (group * row_bytes).div_ceil(4)];
+        let buf: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
         let mut r0 = 0;
         while r0 < rows {
             let g = group.min(rows - r0);
             let bytes = &mut buf[..g * row_bytes];
             let offset = self.header_offset + (r0 * row_bytes) as u64;
             read_at(&mut self.file, &self.data_path, offset, bytes)?;
-            for ((fb, scale), values) in fbs.iter().zip(&scales).zip(out.iter_mut()) {
-                decode_strided(
-                    bytes,
-                    self.ty,
-                    self.big_endian,
-                    *scale,
-                    *fb,
-                    nb,
-                    g * cols,
-                    values,
-                );
-            }
+            decode_interleaved(
+                bytes,
+                self.ty,
+                self.big_endian,
+                &scales,
+                fbs,
+                nb,
+                g * cols,
+                &mut out,
+            );
             r0 += g;
         }
         Ok(out)
     }
 
-    /// BIP → band order, once: reads the frame's rows sequentially, a block at a time, and
-    /// writes each stored band's part of the block to the scratch file (scaled as the
-    /// planes are). Memory: one read block and its decoded copy.
+    /// BIP → band order, once: reads the frame's rows sequentially, a block at a time,
+    /// decodes every stored band of the block (scaled as the planes are; a tile of pixels
+    /// at a time, [`decode_interleaved`]) and writes each band's part to the scratch file.
+    /// Memory: one read block and its decoded copy.
     fn transpose_bip(&mut self) -> Result<BandSpill> {
         let (rows, cols, nb) = (self.meta.rows, self.meta.cols, self.file_bands);
         let mut spill = BandSpill::create(&self.data_path, nb, rows, cols)?;
         let group = self.bip_rows_per_read();
         let row_bytes = cols * nb * self.ty.size();
-        let mut buf = vec![0u8; group * row_bytes];
-        let mut values = Vec::with_capacity(group * cols);
+        // Whole f32 words, so that native f32 samples are read in place (4-byte aligned).
+        let mut words = vec![0u32; (group * row_bytes).div_ceil(4)];
+        let buf: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
+        let bands: Vec<usize> = (0..nb).collect();
+        let scales: Vec<Option<(f64, f64)>> = bands.iter().map(|&fb| self.scale_of(fb)).collect();
+        let mut values: Vec<Vec<f32>> = bands
+            .iter()
+            .map(|_| Vec::with_capacity(group * cols))
+            .collect();
         let mut r0 = 0;
         while r0 < rows {
             let g = group.min(rows - r0);
             let bytes = &mut buf[..g * row_bytes];
             let offset = self.header_offset + (r0 * row_bytes) as u64;
             read_at(&mut self.file, &self.data_path, offset, bytes)?;
-            for fb in 0..nb {
-                values.clear();
-                let scale = self.scale_of(fb);
-                decode_strided(
-                    bytes,
-                    self.ty,
-                    self.big_endian,
-                    scale,
-                    fb,
-                    nb,
-                    g * cols,
-                    &mut values,
-                );
-                spill.write(&self.data_path, fb, r0, 0, &values)?;
+            values.iter_mut().for_each(Vec::clear);
+            decode_interleaved(
+                bytes,
+                self.ty,
+                self.big_endian,
+                &scales,
+                &bands,
+                nb,
+                g * cols,
+                &mut values,
+            );
+            for (fb, v) in values.iter().enumerate() {
+                spill.write(&self.data_path, fb, r0, 0, v)?;
             }
             r0 += g;
         }

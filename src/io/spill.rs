@@ -98,28 +98,27 @@ impl BandSpill {
                 ),
             ));
         }
-        let mut bytes = Vec::with_capacity(values.len() * 4);
-        for v in values {
-            bytes.extend_from_slice(&v.to_ne_bytes());
-        }
+        // The values' native bytes, as they are in memory (`to_ne_bytes` of each).
+        let bytes: &[u8] = bytemuck::cast_slice(values);
         self.file
             .seek(SeekFrom::Start(start as u64 * 4))
-            .and_then(|_| self.file.write_all(&bytes))
+            .and_then(|_| self.file.write_all(bytes))
             .map_err(|e| spill_error(source, &self.path, "cannot write", e))
     }
 
     /// Reads band `band` back (`rows × cols` samples, row-major) with one read.
     pub(crate) fn read(&mut self, source: &Path, band: usize) -> Result<Vec<f32>> {
         let n = self.rows * self.cols;
-        let mut bytes = vec![0u8; n * 4];
+        // Read straight into the plane: the file holds the values' native bytes.
+        let mut values = vec![0f32; n];
         self.file
             .seek(SeekFrom::Start((band * n) as u64 * 4))
-            .and_then(|_| self.file.read_exact(&mut bytes))
+            .and_then(|_| {
+                self.file
+                    .read_exact(bytemuck::cast_slice_mut(&mut values[..]))
+            })
             .map_err(|e| spill_error(source, &self.path, "cannot read", e))?;
-        Ok(bytes
-            .chunks_exact(4)
-            .map(|c| f32::from_ne_bytes([c[0], c[1], c[2], c[3]]))
-            .collect())
+        Ok(values)
     }
 }
 
