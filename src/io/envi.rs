@@ -949,13 +949,7 @@ impl EnviReader {
     /// request is not every band; otherwise by reading the frame's rows and picking the
     /// requested samples out of every pixel.
     fn read_bip(&mut self, fbs: &[usize]) -> Result<Vec<Vec<f32>>> {
-        let frame_bytes = self.frame_bytes();
-        let all_bands = {
-            let mut seen = vec![false; self.file_bands];
-            fbs.iter().for_each(|&fb| seen[fb] = true);
-            seen.iter().all(|s| *s)
-        };
-        if self.spill.is_none() && (frame_bytes <= self.bip_direct_frame_bytes || all_bands) {
+        if !self.bip_through_spill(fbs) {
             return self.read_bip_direct(fbs);
         }
         if self.spill.is_none() {
@@ -964,6 +958,47 @@ impl EnviReader {
         let (spill, path) = (self.spill.as_mut(), &self.data_path);
         let spill = spill.ok_or_else(|| Error::format(path, "scratch file missing"))?;
         fbs.iter().map(|&fb| spill.read(path, fb)).collect()
+    }
+
+    /// Whether stored bands `fbs` of a BIP file are read from the band-order scratch file:
+    /// once it exists, or when the frame is larger than the direct size and the request
+    /// is not every band (for every band, one pass over the rows is the cheaper way).
+    fn bip_through_spill(&self, fbs: &[usize]) -> bool {
+        let all_bands = {
+            let mut seen = vec![false; self.file_bands];
+            fbs.iter().for_each(|&fb| seen[fb] = true);
+            seen.iter().all(|s| *s)
+        };
+        self.spill.is_some() || (self.frame_bytes() > self.bip_direct_frame_bytes && !all_bands)
+    }
+
+    /// Bands `bands` of a BIP file mapped from the band-order scratch file (created here
+    /// if it is due, [`EnviReader::bip_through_spill`]), unchecked: the values `read_bip`
+    /// would read, without the copy. `None` where they are read instead: mapping off or
+    /// failed, a `data ignore value` to replace, bands read directly.
+    fn map_bip_spill(&mut self, bands: &[usize]) -> Result<Option<BandPlanes>> {
+        if self.options.no_memory_map
+            || self.map_failed
+            || self.interleave != Interleave::Bip
+            || self.ignore.is_some()
+        {
+            return Ok(None);
+        }
+        let fbs: Vec<usize> = bands.iter().map(|&b| self.band_map[b]).collect();
+        if !self.bip_through_spill(&fbs) {
+            return Ok(None);
+        }
+        if self.spill.is_none() {
+            self.spill = Some(self.transpose_bip()?);
+        }
+        let Some(spill) = self.spill.as_ref() else {
+            return Ok(None);
+        };
+        let planes: Option<Vec<_>> = fbs.iter().map(|&fb| spill.map_band(fb)).collect();
+        if planes.is_none() {
+            self.map_failed = true;
+        }
+        Ok(planes.map(BandPlanes::Mapped))
     }
 
     /// Bytes of one frame in the data file.
@@ -1148,7 +1183,11 @@ impl CubeReader for EnviReader {
         if bands.is_empty() {
             return Ok((BandPlanes::Owned(Vec::new()), None));
         }
-        match self.map_bsq(bands, false)? {
+        let mapped = match self.map_bsq(bands, false)? {
+            Some(planes) => Some(planes),
+            None => self.map_bip_spill(bands)?,
+        };
+        match mapped {
             Some(planes) => {
                 let check = DeferredCheck::new(&self.data_path, bands, &self.meta.wavelength_um);
                 Ok((planes, Some(check)))

@@ -1,6 +1,7 @@
 //! Band planes served straight from read-only memory maps of the input file (`mmap`), so
 //! that f32 planes stored contiguously in the machine's byte order and in eoir's units
-//! (ENVI band-sequential, NPY `<f4`) cost no copy at all: the imaging engine's row pass
+//! (ENVI band-sequential, NPY `<f4`, and the band-order scratch file an ENVI BIP frame is
+//! transposed into, `io::spill`) cost no copy at all: the imaging engine's row pass
 //! reads the page cache itself. One map per plane, unmapped as soon as the engine is done
 //! with it, so the mapped pages counted in the resident set stay those of the two chunks
 //! in flight (memory stays flat in the band count). A `read()` into a

@@ -19,6 +19,7 @@ use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use super::mapped::{map_plane, Mapping};
 use crate::error::{Error, Result};
 
 /// Distinguishes the spill files of one process.
@@ -104,6 +105,15 @@ impl BandSpill {
             .seek(SeekFrom::Start(start as u64 * 4))
             .and_then(|_| self.file.write_all(bytes))
             .map_err(|e| spill_error(source, &self.path, "cannot write", e))
+    }
+
+    /// Band `band` mapped read-only (the values [`BandSpill::read`] returns, straight
+    /// from the page cache, as `map_plane` maps a band-sequential input), or `None` if
+    /// it cannot be mapped (the caller then reads it).
+    pub(crate) fn map_band(&self, band: usize) -> Option<(Mapping, usize, usize)> {
+        let n = self.rows * self.cols;
+        (band < self.bands).then_some(())?;
+        map_plane(&self.file, (band * n) as u64 * 4, self.rows, self.cols)
     }
 
     /// Reads band `band` back (`rows × cols` samples, row-major) with one read.

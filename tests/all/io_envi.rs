@@ -811,6 +811,19 @@ fn chunked_reads_give_the_layout_truth_for_every_interleave_type_and_order() {
                     }
                     let spilled = layout_is_bip(il) && path == "scratch";
                     assert_eq!(r.uses_scratch_file(), spilled, "{stem} ({path})");
+                    // The engine's read: the same values, mapped (check owed) where the
+                    // file is native f32 BSQ with aligned planes (not at this header
+                    // offset) or BIP goes through the scratch file.
+                    let native_bsq = il == "bsq" && ty == 4 && !big && offset % 4 == 0;
+                    for req in REQUESTS.iter().filter(|q| !q.is_empty()) {
+                        let (planes, owed) = r.read_planes_deferred(0, req).unwrap();
+                        let mapped = matches!(planes, io::BandPlanes::Mapped(_));
+                        assert_eq!(mapped, native_bsq || spilled, "{stem} ({path}) {req:?}");
+                        assert_eq!(owed.is_some(), mapped, "{stem} ({path}) {req:?}");
+                        for (plane, &b) in planes.views().iter().zip(*req) {
+                            assert_is_truth(plane.view(), b, &format!("{stem} ({path}) {req:?}"));
+                        }
+                    }
                 }
             }
         }
@@ -980,6 +993,17 @@ fn nan_in_a_band_not_requested_is_not_seen_and_in_a_requested_band_names_band_an
                 e.contains("band 2 (10 µm), row 3, col 4"),
                 "{il} ({path}): {e}"
             );
+            // The engine's read: a mapped chunk comes with the check owed, whose error is
+            // the reader's own; a chunk read into memory is refused at once.
+            let want = r.read_bands(0, &[1, 2]).unwrap_err().to_string();
+            match r.read_planes_deferred(0, &[1, 2]) {
+                Ok((planes, Some(owed))) => {
+                    assert!(matches!(planes, io::BandPlanes::Mapped(_)), "{il} ({path})");
+                    assert_eq!(owed.run(&planes).unwrap_err().to_string(), want);
+                }
+                Ok((_, None)) => panic!("{il} ({path}): a bad plane handed over as checked"),
+                Err(e) => assert_eq!(e.to_string(), want, "{il} ({path})"),
+            }
         }
     }
 }
