@@ -69,7 +69,7 @@ pub struct Table1d {
 impl Table1d {
     /// Tabulates `f` on `[0, end]` starting from `intervals` intervals and doubling until
     /// every midpoint is within `tolerance` of `f` (or `MAX_INTERVALS`, 2^22, is reached;
-    /// see [`refine`]).
+    /// see `refine`).
     pub fn build(
         f: impl Fn(f64) -> f64 + Sync,
         end: f64,
