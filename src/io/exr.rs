@@ -59,9 +59,7 @@
 //! together, so one band cannot be read without decoding every block of the image.
 //! [`ExrReader::open`] therefore decodes the file once, block by block, and writes the
 //! spectral channels (as f32) into a band-order scratch file in the temporary directory
-//! (unlinked at creation; see `spill`); each band read is then one sequential read, and
-//! the imaging engine maps the planes of bands stored in the cube's units from that file
-//! instead (`CubeReader::read_planes_deferred`, as for a band-sequential input). The
+//! (unlinked at creation; see `spill`); each band read is then one sequential read. The
 //! peak memory of reading is one compressed chunk + one decompressed block + one
 //! channel's share of it (for 1024 columns × 256 f32 channels with ZIP, 16 lines: 16 MiB
 //! per block), plus the offset tables (8 bytes per block) and the band planes the
@@ -82,7 +80,6 @@ use crate::constants::SPEED_OF_LIGHT_C;
 use crate::error::{Error, Result};
 use crate::scene::{check_radiance_plane, Cube, CubeMeta, RadianceUnits};
 
-use super::mapped::{BandPlanes, DeferredCheck};
 use super::metadata::{resolve_geometry, resolve_units, ReadOptions};
 use super::spill::BandSpill;
 
@@ -366,9 +363,6 @@ pub struct ExrReader {
     scale: Vec<f64>,
     units_source: String,
     warnings: Vec<String>,
-    /// Whether the engine's planes may be mapped from the scratch file (mapping not
-    /// turned off, and not failed yet).
-    map: bool,
 }
 
 /// Maps an OpenEXR decoder error to eoir's, naming the file.
@@ -901,7 +895,6 @@ impl ExrReader {
             scale,
             units_source,
             warnings,
-            map: !options.no_memory_map,
         })
     }
 }
@@ -1026,26 +1019,6 @@ impl super::CubeReader for ExrReader {
             plane.view(),
         )?;
         Ok(plane)
-    }
-
-    /// The planes mapped from the band-order scratch file, unchecked (see the trait
-    /// method), when every requested band is stored in the cube's units (no scaling, as
-    /// the scratch file then holds the values `read_band` returns); otherwise read.
-    fn read_planes_deferred(
-        &mut self,
-        frame: usize,
-        bands: &[usize],
-    ) -> Result<(BandPlanes, Option<DeferredCheck>)> {
-        let unscaled = |b: usize| self.scale.get(b).is_some_and(|s| *s == 1.0);
-        if self.map && frame == 0 && !bands.is_empty() && bands.iter().all(|&b| unscaled(b)) {
-            let planes: Option<Vec<_>> = bands.iter().map(|&b| self.spill.map_band(b)).collect();
-            if let Some(planes) = planes {
-                let check = DeferredCheck::new(&self.path, bands, &self.meta.wavelength_um);
-                return Ok((BandPlanes::Mapped(planes), Some(check)));
-            }
-            self.map = false;
-        }
-        Ok((self.read_planes(frame, bands)?, None))
     }
 
     fn warnings(&self) -> Vec<String> {
