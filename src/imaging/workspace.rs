@@ -190,9 +190,10 @@ impl FramePool {
 }
 
 /// Most bytes of chunk profiles an imager keeps for a sequence
-/// ([`super::Imager::keep_chunk_profiles`]; the rest are rebuilt per frame): 64 profiles of the 8 192 intervals the every-component SWIR sensor needs (256 KiB
-/// each), so a sequence of up to 256 such bands reuses all of them and a longer one
-/// does not grow the run's memory with its band count.
+/// ([`super::Imager::keep_chunk_profiles`]; the rest are rebuilt per frame): 64 profiles
+/// of the 8 192 intervals the every-component SWIR sensor needs (256 KiB each), so a
+/// sequence of up to 256 such bands reuses all of them and a longer one does not grow
+/// the run's memory with its band count.
 pub const PROFILE_CACHE_BYTES: usize = 16 << 20;
 
 /// The OTF profiles of a frame's chunks ([`ChunkProfile`], one per chunk of bands), kept by

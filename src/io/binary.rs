@@ -333,7 +333,7 @@ mod tests {
                 let n = ty.size();
                 let tile = (INTERLEAVED_TILE_BYTES / (stride * n)).max(1);
                 let pixels = 2 * tile + tile / 3 + 1;
-                // Words, so that `&raw[..]` is 4-byte aligned and `&raw[1..]` is not.
+                // Words, so that `&all[0..]` is 4-byte aligned and `&all[1..]` is not.
                 let mut words: Vec<u32> = (0..(pixels * stride * n / 4 + 2) as u32)
                     .map(|k| 0x3f80_0000 ^ k.wrapping_mul(2_654_435_761) >> 9)
                     .collect();

@@ -223,11 +223,11 @@ pub fn radiance_is_physical_by_definition(values: &[f32]) -> bool {
 const F32_MAX_BITS: u32 = 0x7f7f_ffff;
 
 /// [`radiance_is_physical`] on eight values at a time. Adding +0.0 turns −0.0 into +0.0
-/// (IEEE 754 round to nearest) and leaves every other value, NaN included, as it is;
-/// then a value is physical exactly when its bits, read as an unsigned integer, are at
-/// most those of `f32::MAX` (a set sign bit, the all-ones exponent of ±Inf and NaN: all
-/// above). So one add and one unsigned max per eight values, in four independent
-/// accumulators, and one comparison at the end.
+/// (IEEE 754 round to nearest) and leaves every other value as it is (a NaN stays a
+/// NaN); then a value is physical exactly when its bits, read as an unsigned integer,
+/// are at most those of `f32::MAX` (a set sign bit, the all-ones exponent of ±Inf and
+/// NaN: all above). So one add and one unsigned max per eight values, in four
+/// independent accumulators, and one comparison at the end.
 ///
 /// # Safety
 /// The CPU must support AVX2 (`is_x86_feature_detected!("avx2")`).
