@@ -59,7 +59,9 @@
 //! together, so one band cannot be read without decoding every block of the image.
 //! [`ExrReader::open`] therefore decodes the file once, block by block, and writes the
 //! spectral channels (as f32) into a band-order scratch file in the temporary directory
-//! (unlinked at creation; see `spill`); each band read is then one sequential read. The
+//! (unlinked at creation; see `spill`); each band read is then one sequential read, and
+//! the imaging engine maps the planes of bands stored in the cube's units from that file
+//! instead (`CubeReader::read_planes_deferred`, as for a band-sequential input). The
 //! peak memory of reading is one compressed chunk + one decompressed block + one
 //! channel's share of it (for 1024 columns × 256 f32 channels with ZIP, 16 lines: 16 MiB
 //! per block), plus the offset tables (8 bytes per block) and the band planes the
@@ -80,6 +82,7 @@ use crate::constants::SPEED_OF_LIGHT_C;
 use crate::error::{Error, Result};
 use crate::scene::{check_radiance_plane, Cube, CubeMeta, RadianceUnits};
 
+use super::mapped::{BandPlanes, DeferredCheck};
 use super::metadata::{resolve_geometry, resolve_units, ReadOptions};
 use super::spill::BandSpill;
 
@@ -363,6 +366,23 @@ pub struct ExrReader {
     scale: Vec<f64>,
     units_source: String,
     warnings: Vec<String>,
+    /// Whether the engine's planes may be mapped from the scratch file (mapping not
+    /// turned off, and not failed yet).
+    map: bool,
+}
+
+/// Hands the heap memory the decode freed back to the system (glibc keeps large freed
+/// blocks resident once its mmap threshold has risen): otherwise the decompressed
+/// blocks of all channels stay in the resident set for the whole run, under the planes
+/// the engine maps from the scratch file. Nothing elsewhere (other allocators return
+/// such memory themselves or not at all).
+fn release_freed_heap() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only returns free heap memory to the system; it takes no
+    // pointers and leaves every live allocation as it is.
+    unsafe {
+        libc::malloc_trim(0);
+    }
 }
 
 /// Maps an OpenEXR decoder error to eoir's, naming the file.
@@ -888,6 +908,7 @@ impl ExrReader {
 
         let channels: Vec<usize> = found.iter().map(|f| f.channel).collect();
         let spill = decode_to_spill(path, blocks, layer_index, &channels, rows, cols)?;
+        release_freed_heap();
         Ok(ExrReader {
             path: path.to_path_buf(),
             meta,
@@ -895,6 +916,7 @@ impl ExrReader {
             scale,
             units_source,
             warnings,
+            map: !options.no_memory_map,
         })
     }
 }
@@ -1019,6 +1041,26 @@ impl super::CubeReader for ExrReader {
             plane.view(),
         )?;
         Ok(plane)
+    }
+
+    /// The planes mapped from the band-order scratch file, unchecked (see the trait
+    /// method), when every requested band is stored in the cube's units (no scaling, as
+    /// the scratch file then holds the values `read_band` returns); otherwise read.
+    fn read_planes_deferred(
+        &mut self,
+        frame: usize,
+        bands: &[usize],
+    ) -> Result<(BandPlanes, Option<DeferredCheck>)> {
+        let unscaled = |b: usize| self.scale.get(b).is_some_and(|s| *s == 1.0);
+        if self.map && frame == 0 && !bands.is_empty() && bands.iter().all(|&b| unscaled(b)) {
+            let planes: Option<Vec<_>> = bands.iter().map(|&b| self.spill.map_band(b)).collect();
+            if let Some(planes) = planes {
+                let check = DeferredCheck::new(&self.path, bands, &self.meta.wavelength_um);
+                return Ok((BandPlanes::Mapped(planes), Some(check)));
+            }
+            self.map = false;
+        }
+        Ok((self.read_planes(frame, bands)?, None))
     }
 
     fn warnings(&self) -> Vec<String> {

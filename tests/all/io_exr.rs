@@ -201,6 +201,12 @@ fn foreign_nm_file_is_ordered_scaled_and_warned() {
         }
     }
 
+    // Scaled bands are read for the engine too, checked (the scratch file holds the
+    // stored values, not the cube's).
+    let (planes, owed) = reader.read_planes_deferred(0, &[1, 3]).unwrap();
+    assert!(matches!(planes, eoir::io::BandPlanes::Owned(_)) && owed.is_none());
+    assert_eq!(planes.views()[1], reader.read_band(0, 3).unwrap());
+
     let warnings = reader.warnings().join("\n");
     assert!(
         warnings.contains("assumed the unit of the channel names (nm)"),
@@ -582,6 +588,31 @@ fn nan_in_a_band_not_read_is_not_seen_and_in_a_band_read_names_band_and_pixel() 
     assert!(
         e.contains("band 1 (0.9 µm), row 2, col 5: radiance NaN") && e.contains("nan.exr"),
         "{e}"
+    );
+    // The engine's read: the planes mapped from the scratch file, bit for bit those
+    // read_bands returns, with the check owed, whose error is the reader's own.
+    let (planes, owed) = r.read_planes_deferred(0, &[2, 0]).unwrap();
+    assert!(matches!(planes, eoir::io::BandPlanes::Mapped(_)));
+    for (got, want) in planes.views().iter().zip(r.read_bands(0, &[2, 0]).unwrap()) {
+        assert!(got
+            .iter()
+            .zip(&want)
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+    }
+    owed.expect("mapped planes owe the check")
+        .run(&planes)
+        .unwrap();
+    let (planes, owed) = r.read_planes_deferred(0, &[0, 1]).unwrap();
+    assert_eq!(owed.unwrap().run(&planes).unwrap_err().to_string(), e);
+    // With mapping off, read and checked at once.
+    let opts = eoir::io::ReadOptions {
+        no_memory_map: true,
+        ..Default::default()
+    };
+    let mut r = ExrReader::open_with(&path, &opts).unwrap();
+    assert_eq!(
+        r.read_planes_deferred(0, &[0, 1]).unwrap_err().to_string(),
+        e
     );
 }
 
