@@ -952,12 +952,21 @@ impl EnviReader {
         if !self.bip_through_spill(fbs) {
             return self.read_bip_direct(fbs);
         }
+        let path = self.data_path.clone();
+        let spill = self.bip_spill()?;
+        fbs.iter().map(|&fb| spill.read(&path, fb)).collect()
+    }
+
+    /// The band-order scratch file of a BIP frame, made on first use
+    /// ([`EnviReader::transpose_bip`]).
+    fn bip_spill(&mut self) -> Result<&mut BandSpill> {
         if self.spill.is_none() {
             self.spill = Some(self.transpose_bip()?);
         }
-        let (spill, path) = (self.spill.as_mut(), &self.data_path);
-        let spill = spill.ok_or_else(|| Error::format(path, "scratch file missing"))?;
-        fbs.iter().map(|&fb| spill.read(path, fb)).collect()
+        let path = &self.data_path;
+        self.spill
+            .as_mut()
+            .ok_or_else(|| Error::format(path, "scratch file missing"))
     }
 
     /// Whether stored bands `fbs` of a BIP file are read from the band-order scratch file:
@@ -988,17 +997,9 @@ impl EnviReader {
         if !self.bip_through_spill(&fbs) {
             return Ok(None);
         }
-        if self.spill.is_none() {
-            self.spill = Some(self.transpose_bip()?);
-        }
-        let Some(spill) = self.spill.as_ref() else {
-            return Ok(None);
-        };
-        let planes: Option<Vec<_>> = fbs.iter().map(|&fb| spill.map_band(fb)).collect();
-        if planes.is_none() {
-            self.map_failed = true;
-        }
-        Ok(planes.map(BandPlanes::Mapped))
+        let planes = self.bip_spill()?.map_bands(&fbs);
+        self.map_failed = planes.is_none();
+        Ok(planes)
     }
 
     /// Bytes of one frame in the data file.

@@ -1053,10 +1053,9 @@ impl super::CubeReader for ExrReader {
     ) -> Result<(BandPlanes, Option<DeferredCheck>)> {
         let unscaled = |b: usize| self.scale.get(b).is_some_and(|s| *s == 1.0);
         if self.map && frame == 0 && !bands.is_empty() && bands.iter().all(|&b| unscaled(b)) {
-            let planes: Option<Vec<_>> = bands.iter().map(|&b| self.spill.map_band(b)).collect();
-            if let Some(planes) = planes {
+            if let Some(planes) = self.spill.map_bands(bands) {
                 let check = DeferredCheck::new(&self.path, bands, &self.meta.wavelength_um);
-                return Ok((BandPlanes::Mapped(planes), Some(check)));
+                return Ok((planes, Some(check)));
             }
             self.map = false;
         }

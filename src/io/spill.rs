@@ -19,7 +19,7 @@ use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use super::mapped::{map_plane, Mapping};
+use super::mapped::{map_plane, BandPlanes};
 use crate::error::{Error, Result};
 
 /// Distinguishes the spill files of one process.
@@ -107,13 +107,17 @@ impl BandSpill {
             .map_err(|e| spill_error(source, &self.path, "cannot write", e))
     }
 
-    /// Band `band` mapped read-only (the values [`BandSpill::read`] returns, straight
+    /// Bands `bands` mapped read-only (the values [`BandSpill::read`] returns, straight
     /// from the page cache, as `map_plane` maps a band-sequential input), or `None` if
-    /// it cannot be mapped (the caller then reads it).
-    pub(crate) fn map_band(&self, band: usize) -> Option<(Mapping, usize, usize)> {
+    /// one cannot be mapped or is not in the file (the caller then reads them).
+    pub(crate) fn map_bands(&self, bands: &[usize]) -> Option<BandPlanes> {
         let n = self.rows * self.cols;
-        (band < self.bands).then_some(())?;
-        map_plane(&self.file, (band * n) as u64 * 4, self.rows, self.cols)
+        let map = |b: usize| {
+            (b < self.bands).then_some(())?;
+            map_plane(&self.file, (b * n) as u64 * 4, self.rows, self.cols)
+        };
+        let planes: Option<Vec<_>> = bands.iter().map(|&b| map(b)).collect();
+        planes.map(BandPlanes::Mapped)
     }
 
     /// Reads band `band` back (`rows × cols` samples, row-major) with one read.
