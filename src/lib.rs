@@ -25,6 +25,8 @@
 //! - [`cfa`]: colour filter arrays: mosaicking, demosaicking, false-colour composites.
 //! - [`plot`]: PNG line plots with an embedded font (no system font libraries).
 //! - [`detector`]: the `[detector]` table and the detector model: electrons → DN.
+//! - [`los`]: the sequence clock (frame and row exposure times) and the line of sight
+//!   (drift, pan, vibration, wander, measured pointing) with its per-window motion OTF.
 //! - [`sensor`]: the configuration schema, presets, the transfer-function cascade and the
 //!   resolved [`sensor::Sensor`].
 //! - [`imaging`]: the engine — spectral weights, frequency-domain accumulation, detector sampling.
@@ -66,6 +68,7 @@ pub mod imaging;
 pub mod input;
 pub mod io;
 pub mod limits;
+pub mod los;
 pub mod memory;
 pub mod motion;
 pub mod optics;

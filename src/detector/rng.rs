@@ -51,6 +51,8 @@ pub(crate) enum Effect {
     Shot = 0x5348_4f54,
     /// Temporal read noise.
     Read = 0x5245_4144,
+    /// Line-of-sight wander (`crate::los`), one stream per image axis (the `row` key).
+    LosWander = 0x4c4f_5357,
 }
 
 /// SplitMix64 finaliser: a bijective 64-bit mix with full avalanche.

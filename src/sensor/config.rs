@@ -101,27 +101,8 @@ pub struct DefocusConfig {
     pub focus_shift_m: Option<f64>,
 }
 
-/// `[motion]`: linear smear during the integration time. Give exactly one of
-/// `smear_rad`, `angular_rate_rad_s`, or `velocity_m_s` with `range_m`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MotionConfig {
-    /// Angular smear length during one integration, rad.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub smear_rad: Option<f64>,
-    /// Line-of-sight angular rate, rad/s.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub angular_rate_rad_s: Option<f64>,
-    /// Transverse velocity of the scene relative to the sensor, m/s.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub velocity_m_s: Option<f64>,
-    /// Range to the moving scene, m (with `velocity_m_s`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub range_m: Option<f64>,
-    /// Direction of motion in the image, degrees from +x (columns) toward +y (rows).
-    #[serde(default)]
-    pub direction_deg: f64,
-}
+/// `[motion]` lives with the line of sight it drives over a sequence.
+pub use crate::los::MotionConfig;
 
 /// `[jitter]`: random line-of-sight jitter.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -310,6 +291,12 @@ pub struct SensorConfig {
     /// Radiometric calibration (`[calibration]`, thermal sensors).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub calibration: Option<CalibrationConfig>,
+    /// The sequence clock (`[clock]`): frame times, shutter; absent = a still camera.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clock: Option<crate::los::ClockConfig>,
+    /// Line-of-sight trajectory over a sequence (`[trajectory]`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trajectory: Option<crate::los::TrajectoryConfig>,
     /// The preset options this description was resolved with (`--option name=value`, or
     /// the preset's defaults), recorded for provenance; informational only.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
@@ -559,6 +546,12 @@ impl SensorConfig {
                     "a finite angle",
                 ));
             }
+        }
+        if let Some(c) = &self.clock {
+            c.validate(d.integration_time_s, d.rows)?;
+        }
+        if let Some(t) = &self.trajectory {
+            t.validate()?;
         }
         if let Some(j) = &self.jitter {
             require_non_negative("jitter.sigma_rad", j.sigma_rad)?;

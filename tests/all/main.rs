@@ -22,6 +22,7 @@ mod io_exr;
 mod io_hdf5;
 mod io_npy;
 mod io_raster;
+mod los;
 mod motion;
 mod nuc_cli;
 mod optics;
