@@ -34,7 +34,7 @@
 pub mod config;
 mod fpn;
 mod gain;
-mod rng;
+pub(crate) mod rng;
 
 use std::path::Path;
 

@@ -181,14 +181,4 @@ impl Wander {
         }
         out
     }
-
-    /// The grid step, s.
-    pub(crate) fn step_s(&self) -> f64 {
-        self.dt_s
-    }
-
-    /// The period of the realisation, s.
-    pub(crate) fn period_s(&self) -> f64 {
-        self.dt_s * self.x[0].len() as f64
-    }
 }
