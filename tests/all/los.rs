@@ -301,7 +301,7 @@ fn wander_periodogram_matches_the_psd() {
     let blocks = 50;
     let test_bins = [8usize, 12, 24, 40, 60]; // 2, 3, 6, 10, 15 Hz
     let mut sums = vec![0.0; test_bins.len()];
-    let mut count = 0.0;
+    let mut count: f64 = 0.0;
     for seed in [3u64, 4] {
         let l = los(&t, 0.01, seed, (0.0, block as f64 * blocks as f64 * dt));
         for axis in 0..2 {
