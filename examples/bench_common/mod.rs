@@ -36,11 +36,20 @@ pub fn peak_rss_mib(stderr: &str) -> f64 {
 /// The every-component SWIR sensor of the performance issue
 /// (`benches/swir_all_components.toml`) with a `det × det` detector.
 pub fn swir_sensor_config(det: usize) -> eoir::Result<eoir::sensor::SensorConfig> {
+    swir_sensor_config_with(det, &[])
+}
+
+/// [`swir_sensor_config`] with further `key=value` overrides (as `--set` takes them).
+pub fn swir_sensor_config_with(
+    det: usize,
+    extra: &[String],
+) -> eoir::Result<eoir::sensor::SensorConfig> {
     const SENSOR: &str = include_str!("../../benches/swir_all_components.toml");
-    let overrides = [
+    let mut overrides = vec![
         format!("detector.rows={det}"),
         format!("detector.cols={det}"),
     ];
+    overrides.extend(extra.iter().cloned());
     eoir::sensor::SensorConfig::from_toml_str(SENSOR, "bench", ".".into(), &overrides)
 }
 

@@ -627,6 +627,25 @@ impl<T: FftFloat> RealFft2<T> {
         wanted: &[usize],
         out: &mut Array2<T>,
     ) {
+        self.inverse_transposed_rows_with(spec_t, wanted, out, |_, _| {});
+    }
+
+    /// [`RealFft2::inverse_transposed_rows`] with `row_hook(i, spectrum)` called on the
+    /// half spectrum of output row i (`cols/2+1` column frequencies) after the column
+    /// transforms and before that row's own transform: a per-row multiplication there
+    /// (e.g. a phase ramp that shifts one row along x, used for a rolling shutter's
+    /// row-by-row displacement) acts on that row alone. With a hook that does nothing,
+    /// the same values as [`RealFft2::inverse_transposed_rows`] bit for bit.
+    ///
+    /// # Panics
+    /// As [`RealFft2::inverse_transposed_rows`].
+    pub fn inverse_transposed_rows_with(
+        &self,
+        spec_t: &mut [Complex<T>],
+        wanted: &[usize],
+        out: &mut Array2<T>,
+        row_hook: impl Fn(usize, &mut [Complex<T>]) + Sync,
+    ) {
         let (rows, cols) = (self.rows, self.cols);
         let hc = cols / 2 + 1;
         assert_eq!(
@@ -651,13 +670,14 @@ impl<T: FftFloat> RealFft2<T> {
         let spec_t: &[Complex<T>] = spec_t;
         out.axis_iter_mut(Axis(0))
             .into_par_iter()
-            .zip(wanted.par_iter())
+            .zip(wanted.par_iter().enumerate())
             .for_each_init(
                 || (vec![zero; hc], self.c2r.make_scratch_vec()),
-                |(row, sc), (mut o, &y)| {
+                |(row, sc), (mut o, (i, &y))| {
                     for (u, x) in row.iter_mut().enumerate() {
                         *x = spec_t[u * rows + y];
                     }
+                    row_hook(i, row);
                     self.inverse_row(row, o.as_slice_mut().expect("standard layout"), sc);
                 },
             );

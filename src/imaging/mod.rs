@@ -23,6 +23,7 @@
 
 mod accumulate;
 pub mod fft;
+pub mod motion;
 pub mod otf_table;
 pub use accumulate::{accumulate_chunk, RadialGrid};
 pub use sampling::{AxisSampling, Sampling, COARSER_TOLERANCE};
@@ -306,7 +307,19 @@ impl Imager {
         geometry: &Geometry,
         wrap_tolerance: f64,
     ) -> Result<Self> {
-        let otf = sensor.otf().clone();
+        Self::with_otf(sensor, sensor.otf().clone(), meta, geometry, wrap_tolerance)
+    }
+
+    /// [`Imager::new`] with the transfer-function cascade `otf` instead of the sensor's
+    /// own (a moving camera's sequence replaces the motion component, see
+    /// [`SystemOtf::with_motion_smear`]).
+    pub fn with_otf(
+        sensor: &Sensor,
+        otf: SystemOtf,
+        meta: &CubeMeta,
+        geometry: &Geometry,
+        wrap_tolerance: f64,
+    ) -> Result<Self> {
         let weights = SpectralWeights::new(sensor, meta)?;
         let mut sampling = Sampling::new(sensor, meta, geometry)?;
         let active: Vec<f64> = weights
@@ -473,20 +486,41 @@ impl Imager {
         frame: usize,
         progress: impl FnMut(usize, usize),
     ) -> Result<(Array2<f64>, ImagingStats)> {
+        self.with_spectrum(reader, frame, progress, |acc_t| {
+            Ok(self.detector_image_transposed(acc_t))
+        })
+    }
+
+    /// Images frame `frame` of `reader` as [`Imager::mean_electrons`] does up to the
+    /// inverse transform, and hands the band-summed spectrum (transposed, `[fx][fy]`, as
+    /// [`Imager::detector_image_transposed`] takes it; `finish` may use it as scratch) to
+    /// `finish`, whose result is returned with the imaging timings (`inverse_s` is the
+    /// time `finish` took). A moving camera's static scene samples one spectrum once per
+    /// frame of its sequence ([`Imager::detector_image_moving`]).
+    pub fn with_spectrum<R>(
+        &self,
+        reader: &mut dyn CubeReader,
+        frame: usize,
+        progress: impl FnMut(usize, usize),
+        finish: impl FnOnce(&mut [Complex64]) -> Result<R>,
+    ) -> Result<(R, ImagingStats)> {
         match self.precision {
-            FftPrecision::F32 => self.mean_electrons_in(&self.fft32, reader, frame, progress),
-            FftPrecision::F64 => self.mean_electrons_in(&self.fft, reader, frame, progress),
+            FftPrecision::F32 => {
+                self.mean_electrons_in(&self.fft32, reader, frame, progress, finish)
+            }
+            FftPrecision::F64 => self.mean_electrons_in(&self.fft, reader, frame, progress, finish),
         }
     }
 
-    /// [`Imager::mean_electrons`] with forward transforms in `T`.
-    fn mean_electrons_in<T: FftFloat>(
+    /// [`Imager::with_spectrum`] with forward transforms in `T`.
+    fn mean_electrons_in<T: FftFloat, R>(
         &self,
         fft: &RealFft2<T>,
         reader: &mut dyn CubeReader,
         frame: usize,
         mut progress: impl FnMut(usize, usize),
-    ) -> Result<(Array2<f64>, ImagingStats)> {
+        finish: impl FnOnce(&mut [Complex64]) -> Result<R>,
+    ) -> Result<(R, ImagingStats)> {
         let (ny, nx) = (self.sampling.y.padded_len, self.sampling.x.padded_len);
         let hc = nx / 2 + 1;
         // Kept from an earlier frame of this imager if there was one (accumulator zeroed).
@@ -624,14 +658,14 @@ impl Imager {
             progress(stats.bands_used, active.len());
         }
         let t0 = Instant::now();
-        let e = self.detector_image_transposed(&mut acc_t);
+        let e = finish(&mut acc_t);
         stats.inverse_s = t0.elapsed().as_secs_f64();
         self.frames.give_back(workspace::FrameBuffers {
             acc_t,
             rowspecs,
             columns: workspace,
         });
-        Ok((e, stats))
+        Ok((e?, stats))
     }
 
     /// The row pass of one band plane: padded ([`Imager::padded_band`]'s frame, one row at
@@ -815,13 +849,21 @@ impl Imager {
     /// term uses the average of ± frequencies (a cosine), matching the FFT path.
     fn sample_trigonometric(&self, acc: &Array2<Complex64>) -> Array2<f64> {
         let (sy, sx) = (&self.sampling.y, &self.sampling.x);
+        let ys: Vec<f64> = (0..sy.detector_len).map(|i| sy.position(i)).collect();
+        self.sample_trigonometric_at(acc, &ys, sx.pad_before as f64 + sx.first)
+    }
+
+    /// The band-limited interpolant of the padded frame whose spectrum is `acc` at rows
+    /// `ys` (padded-frame coordinates) and the detector's columns from `x0` on (column j at
+    /// `x0 + j·ratio`): `[ys.len(), detector cols]`.
+    fn sample_trigonometric_at(&self, acc: &Array2<Complex64>, ys: &[f64], x0: f64) -> Array2<f64> {
+        let (sy, sx) = (&self.sampling.y, &self.sampling.x);
         let (ny, nx) = (sy.padded_len, sx.padded_len);
         let hx = nx / 2 + 1;
         // Step 1: along y for every column frequency: A[i, u] = Σ_v E[v, u] e^{2πi v' y_i / ny}.
-        let a_rows: Vec<Vec<Complex64>> = (0..sy.detector_len)
-            .into_par_iter()
-            .map(|i| {
-                let y = sy.position(i);
+        let a_rows: Vec<Vec<Complex64>> = ys
+            .par_iter()
+            .map(|&y| {
                 let mut row = vec![Complex64::new(0.0, 0.0); hx];
                 for v in 0..ny {
                     let w = shift_phase(ny, v, y);
@@ -835,7 +877,7 @@ impl Imager {
         // Step 2: along x, Hermitian half-plane: weight 1 for DC, 2 inside, 1 (cosine) at Nyquist.
         let basis: Vec<Vec<Complex64>> = (0..sx.detector_len)
             .map(|j| {
-                let x = sx.position(j);
+                let x = x0 + j as f64 * sx.ratio;
                 (0..hx)
                     .map(|u| {
                         let p = shift_phase(nx, u, x);
@@ -849,7 +891,7 @@ impl Imager {
             })
             .collect();
         let norm = 1.0 / (nx * ny) as f64;
-        let mut out = Array2::<f64>::zeros((sy.detector_len, sx.detector_len));
+        let mut out = Array2::<f64>::zeros((ys.len(), sx.detector_len));
         out.axis_iter_mut(Axis(0))
             .into_par_iter()
             .zip(&a_rows)

@@ -769,13 +769,19 @@ impl NpyReader {
 /// The NPY v1.0 preamble + header for a C-order `<f4` array of `shape`, padded with
 /// spaces and a newline so the data starts on a 64-byte boundary.
 fn npy_header_f32(shape: &[usize]) -> Vec<u8> {
+    npy_header("<f4", shape)
+}
+
+/// The NPY v1.0 preamble + header for a C-order array of type `descr` (e.g. `<u2`).
+fn npy_header(descr: &str, shape: &[usize]) -> Vec<u8> {
     let dims: Vec<String> = shape.iter().map(|n| n.to_string()).collect();
     let shape_txt = if dims.len() == 1 {
         format!("({},)", dims[0])
     } else {
         format!("({})", dims.join(", "))
     };
-    let mut dict = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {shape_txt}, }}");
+    let mut dict =
+        format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape_txt}, }}");
     // 6 magic + 2 version + 2 length bytes, then the dictionary and a final '\n'.
     let unpadded = 10 + dict.len() + 1;
     let pad = (64 - unpadded % 64) % 64;
@@ -834,4 +840,32 @@ pub fn write(path: &Path, cube: &Cube) -> Result<()> {
         let _ = std::fs::remove_file(path);
     }
     res
+}
+
+/// Writes frames of equal shape as one `<u2` `[frame, row, col]` `.npy` stack, atomically
+/// (a sequence's DN frames in one file for NumPy: `np.load` gives the stack).
+pub fn write_u16_stack(path: &Path, frames: &[ndarray::ArrayView2<u16>]) -> Result<()> {
+    let (r, c) = frames.first().map_or((0, 0), |f| f.dim());
+    if let Some(f) = frames.iter().find(|f| f.dim() != (r, c)) {
+        return Err(Error::format(
+            path,
+            format!(
+                "frames of different shapes ({r}x{c} and {}x{})",
+                f.nrows(),
+                f.ncols()
+            ),
+        ));
+    }
+    atomic_write(path, |w| {
+        write_all(w, &npy_header("<u2", &[frames.len(), r, c]), path)?;
+        let mut buf = Vec::with_capacity(r * c * 2);
+        for f in frames {
+            buf.clear();
+            for v in f.iter() {
+                buf.extend_from_slice(&v.to_le_bytes());
+            }
+            write_all(w, &buf, path)?;
+        }
+        Ok(())
+    })
 }

@@ -207,6 +207,18 @@ fn sequential(
 ) -> Result<()> {
     let active = job.stage.bands_used();
     let total = job.input_frames * active;
+    if job.input_frames == 1 && job.stage.motion().is_some() {
+        // A static scene seen by a moving camera: one spectrum, one inverse per frame.
+        let s = job.stage.static_sequence(
+            reader,
+            job.n_frames,
+            |b| progress(b, total),
+            |g, e| sink.expose(g, &e),
+        )?;
+        add_stats(&mut done.stats, &s);
+        sink.next = 1;
+        return Ok(());
+    }
     for f in 0..sink.to_image {
         let (e, s) = job
             .stage
@@ -385,22 +397,28 @@ impl<'a> Sink<'a> {
         } else {
             1
         };
-        let mean = Some(e);
         for g in f..f + repeats {
-            let e = finite_mean(&mean, g, &job.options.input_name)?;
-            let exposure = match &mut self.exposure {
-                Some(x) => x,
-                None => self
-                    .exposure
-                    .insert(Exposure::new(job.sensor, e, job.options.seed)?),
-            };
-            let t0 = Instant::now();
-            let dn = exposure.expose(e, job.options.first_frame + g as u64)?;
-            self.detector_s += t0.elapsed().as_secs_f64();
-            let rgb = colour::colour_image(job.sensor, exposure.model(), &dn);
-            self.frames.push(FrameProducts::raw(e, dn, rgb));
+            self.expose(g, &e)?;
         }
         self.next = f + 1;
+        Ok(())
+    }
+
+    /// Exposes frame `g` (the next frame to keep) of mean image `e`.
+    fn expose(&mut self, g: usize, e: &Array2<f64>) -> Result<()> {
+        let job = self.job;
+        let e = finite_mean(e, g, &job.options.input_name)?;
+        let exposure = match &mut self.exposure {
+            Some(x) => x,
+            None => self
+                .exposure
+                .insert(Exposure::new(job.sensor, e, job.options.seed)?),
+        };
+        let t0 = Instant::now();
+        let dn = exposure.expose(e, job.options.first_frame + g as u64)?;
+        self.detector_s += t0.elapsed().as_secs_f64();
+        let rgb = colour::colour_image(job.sensor, exposure.model(), &dn);
+        self.frames.push(FrameProducts::raw(e, dn, rgb));
         Ok(())
     }
 

@@ -12,6 +12,8 @@ use crate::io::CubeReader;
 use crate::scene::{CubeMeta, Geometry};
 use crate::sensor::Sensor;
 
+use super::motion::SequenceMotion;
+
 /// The imaging stage of a run: one [`Imager`] per colour channel (one for a sensor
 /// without a colour filter array), reusable across the frames of a sequence. Imaging a
 /// frame takes `&self`, so several frames can be imaged at once, each from its own reader
@@ -20,17 +22,24 @@ use crate::sensor::Sensor;
 pub struct ImagingStage {
     imagers: Vec<Imager>,
     pattern: Option<crate::cfa::CfaPattern>,
+    /// A moving camera's sequence: how each frame moves (`None`: a still camera).
+    motion: Option<SequenceMotion>,
 }
 
 impl ImagingStage {
     /// Prepares the imagers of `sensor` for an input of `meta` with field of view
     /// `geometry` (padding from `options.wrap_tolerance`, see
     /// [`crate::imaging::pad_width`]; transforms in `options.fft_precision`).
+    ///
+    /// With `motion` (a moving camera's sequence, [`SequenceMotion`]) every frame is
+    /// imaged as it moved, and the transfer-function cascade's motion component is the
+    /// one the motion asks for ([`SequenceMotion::cascade`]).
     pub fn new(
         sensor: &Sensor,
         meta: &CubeMeta,
         geometry: &Geometry,
         options: &super::RunOptions,
+        motion: Option<SequenceMotion>,
     ) -> Result<Self> {
         let channels: Vec<&Sensor> = match sensor.cfa_channels() {
             [] => vec![sensor],
@@ -39,14 +48,24 @@ impl ImagingStage {
         let imagers = channels
             .into_iter()
             .map(|s| {
-                Imager::new(s, meta, geometry, options.wrap_tolerance)
+                let otf = match &motion {
+                    Some(m) => m.cascade(s),
+                    None => s.otf().clone(),
+                };
+                Imager::with_otf(s, otf, meta, geometry, options.wrap_tolerance)
                     .map(|i| i.with_precision(options.fft_precision))
             })
             .collect::<Result<Vec<_>>>()?;
         Ok(ImagingStage {
             imagers,
             pattern: sensor.cfa.as_ref().map(|c| c.pattern),
+            motion,
         })
+    }
+
+    /// The moving camera's sequence motion, if the camera moves.
+    pub fn motion(&self) -> Option<&SequenceMotion> {
+        self.motion.as_ref()
     }
 
     /// Lets the imagers keep their chunks' OTF profiles for the next frame, up to
@@ -156,17 +175,73 @@ impl ImagingStage {
         let mut planes = Vec::with_capacity(self.imagers.len());
         let mut stats = ImagingStats::default();
         let mut done = 0;
+        let moved = self.motion.as_ref().map(|m| m.frame(frame));
         for im in &self.imagers {
-            let (e, s) = im.mean_electrons(reader, frame, |b, _| progress(done + b))?;
+            let (e, s) = im.with_spectrum(
+                reader,
+                frame,
+                |b, _| progress(done + b),
+                |acc| match moved.as_ref().filter(|m| !m.is_identity()) {
+                    Some(m) => im.detector_image_moving(acc, m, &mut Vec::new()),
+                    None => Ok(im.detector_image_transposed(acc)),
+                },
+            )?;
             done += s.bands_used;
             add_stats(&mut stats, &s);
             planes.push(e);
         }
-        let e = match self.pattern {
-            Some(p) => crate::cfa::mosaic([&planes[0], &planes[1], &planes[2]], p)?,
-            None => planes.swap_remove(0),
-        };
-        Ok((e, stats))
+        Ok((self.mosaic(planes)?, stats))
+    }
+
+    /// One mean image from the channels' images (mosaicked for a CFA sensor).
+    fn mosaic(&self, mut planes: Vec<Array2<f64>>) -> Result<Array2<f64>> {
+        match self.pattern {
+            Some(p) => crate::cfa::mosaic([&planes[0], &planes[1], &planes[2]], p),
+            None => Ok(planes.swap_remove(0)),
+        }
+    }
+
+    /// A static scene seen by a moving camera: the scene (frame 0 of `reader`) is imaged
+    /// once up to its band-summed spectrum, then every one of `frames` frames is sampled
+    /// from it as it moved ([`Imager::detector_image_moving`]: one multiplication and one
+    /// inverse transform per frame and channel) and handed to `each(frame, mean image)`
+    /// in frame order. Without motion, every frame is the still image.
+    pub fn static_sequence(
+        &self,
+        reader: &mut dyn CubeReader,
+        frames: usize,
+        mut progress: impl FnMut(usize),
+        mut each: impl FnMut(usize, Array2<f64>) -> Result<()>,
+    ) -> Result<ImagingStats> {
+        let mut stats = ImagingStats::default();
+        let mut spectra = Vec::with_capacity(self.imagers.len());
+        let mut done = 0;
+        for im in &self.imagers {
+            let (spec, s) =
+                im.with_spectrum(reader, 0, |b, _| progress(done + b), |acc| Ok(acc.to_vec()))?;
+            done += s.bands_used;
+            add_stats(&mut stats, &s);
+            spectra.push(spec);
+        }
+        let mut scratch = Vec::new();
+        for g in 0..frames {
+            let t0 = std::time::Instant::now();
+            let moved = self.motion.as_ref().map(|m| m.frame(g));
+            let mut planes = Vec::with_capacity(self.imagers.len());
+            for (im, spec) in self.imagers.iter().zip(&spectra) {
+                planes.push(match moved.as_ref().filter(|m| !m.is_identity()) {
+                    Some(m) => im.detector_image_moving(spec, m, &mut scratch)?,
+                    None => {
+                        scratch.clear();
+                        scratch.extend_from_slice(spec);
+                        im.detector_image_transposed(&mut scratch)
+                    }
+                });
+            }
+            stats.inverse_s += t0.elapsed().as_secs_f64();
+            each(g, self.mosaic(planes)?)?;
+        }
+        Ok(stats)
     }
 }
 

@@ -21,6 +21,7 @@ pub mod colour;
 pub mod expose;
 pub mod frames;
 pub mod image;
+pub mod motion;
 mod output;
 pub mod report_html;
 
@@ -37,6 +38,7 @@ use crate::scene::{CubeMeta, Geometry};
 use crate::sensor::Sensor;
 
 use image::ImagingStage;
+use motion::{SequenceMotion, TruthRow};
 
 /// Options of one run.
 #[derive(Debug, Clone, PartialEq)]
@@ -70,6 +72,11 @@ pub struct RunOptions {
     /// budget does not allow them, and 1 when the reader cannot be reopened (see
     /// [`frames`]). The products do not depend on it.
     pub frames_in_flight: Option<usize>,
+    /// Frames of the whole sequence this run is a piece of (`None`: `first_frame + frames`).
+    /// A moving camera's random wander is synthesised over the whole sequence's time span,
+    /// so pieces run apart (Dask) see the same trajectory as one run when each is told the
+    /// total.
+    pub sequence_frames: Option<u64>,
 }
 
 impl Default for RunOptions {
@@ -84,6 +91,7 @@ impl Default for RunOptions {
             first_frame: 0,
             fft_precision: Default::default(),
             frames_in_flight: None,
+            sequence_frames: None,
         }
     }
 }
@@ -118,6 +126,10 @@ pub struct RunOutput {
     pub report: RunReport,
     /// Warnings collected on the way.
     pub warnings: Vec<String>,
+    /// A moving camera's truth: per frame (per row of each frame for a rolling shutter)
+    /// the exposure window, mean displacement and smear (written as `los.csv`); `None`
+    /// for a still camera.
+    pub line_of_sight: Option<Vec<TruthRow>>,
 }
 
 /// A false-colour composite of runs of the channels of one camera (3-CCD, three-band): the
@@ -187,14 +199,7 @@ fn check_budget(
 
 /// The mean electrons of frame `f`, refused when a count is not finite or beyond the f32
 /// range of the products (it would be written as inf).
-fn finite_mean<'a>(
-    mean: &'a Option<Array2<f64>>,
-    f: usize,
-    input_name: &str,
-) -> Result<&'a Array2<f64>> {
-    let e = mean
-        .as_ref()
-        .ok_or_else(|| Error::OutOfRange("no frame imaged".into()))?;
+fn finite_mean<'a>(e: &'a Array2<f64>, f: usize, input_name: &str) -> Result<&'a Array2<f64>> {
     if let Some(v) = e
         .iter()
         .find(|v| !(v.is_finite() && v.abs() <= f32::MAX as f64))
@@ -277,13 +282,17 @@ pub fn run(
     let mut warnings = reader.warnings();
     warnings.extend(sensor.warnings().iter().cloned());
     let t_setup = Instant::now();
-    let imaging = ImagingStage::new(sensor, &meta, &geometry, options)?;
+    let input_frames = reader.frames();
+    let n_frames = frame_count(input_frames, options.frames, options.first_frame)?;
+    let motion = SequenceMotion::new(sensor, n_frames, input_frames, options)?;
+    warnings.extend(still_camera_warning(sensor, n_frames));
+    let truth = motion.as_ref().map(|m| m.truth(n_frames));
+    let imaging = ImagingStage::new(sensor, &meta, &geometry, options, motion)?;
     let setup_s = t_setup.elapsed().as_secs_f64();
     warnings.extend(imaging.sampling().warnings.iter().cloned());
     warnings.extend(imaging.unread_bands_warning(&meta));
     warnings.extend(sensor.detector().warnings().iter().cloned());
-    let (input_frames, active) = (reader.frames(), imaging.bands_used());
-    let n_frames = frame_count(input_frames, options.frames, options.first_frame)?;
+    let active = imaging.bands_used();
     let run_bytes = check_budget(&imaging, &meta, sensor, n_frames)?;
     let job = frames::FrameJob {
         stage: &imaging,
@@ -334,5 +343,16 @@ pub fn run(
         sensor: sensor.clone(),
         report,
         warnings,
+        line_of_sight: truth,
+    })
+}
+
+/// A sequence of several frames whose sensor has motion but no `[clock]`: every frame is
+/// the same instant (a still camera), which a user who set `[motion]` may not expect.
+fn still_camera_warning(sensor: &Sensor, frames: usize) -> Option<String> {
+    let c = sensor.config();
+    let moves = c.motion.is_some() || c.trajectory.is_some();
+    (frames > 1 && moves && c.clock.is_none()).then(|| {
+        "the sensor has [motion]/[trajectory] but no [clock]: every frame is exposed at the same instant, so nothing moves between frames (set clock.frame_rate_hz, e.g. --set clock.frame_rate_hz=50, for a moving camera)".to_string()
     })
 }

@@ -153,6 +153,16 @@ impl RunOutput {
             let p = dir.join("preview.png");
             crate::io::raster::write_apng_gray8(&p, &self.preview_frames(), 100)?;
             written.push(p);
+            let p = dir.join("dn_stack.npy");
+            let views: Vec<_> = self.frames.iter().map(|f| f.dn.view()).collect();
+            crate::io::npy::write_u16_stack(&p, &views)?;
+            written.push(p);
+        }
+        if let Some(truth) = &self.line_of_sight {
+            let p = dir.join("los.csv");
+            let text = super::motion::truth_csv(truth);
+            crate::io::atomic_write(&p, |w| crate::io::write_all(w, text.as_bytes(), &p))?;
+            written.push(p);
         }
         let p = dir.join("config.toml");
         let text = self.sensor.to_toml_string()?;

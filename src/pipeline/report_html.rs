@@ -56,6 +56,9 @@ pub struct RunPictures {
     /// `mtf.png`: the transfer functions at the response-weighted mean wavelength (absent
     /// when the sensor's band is unbounded).
     pub mtf: Option<Picture>,
+    /// `trajectory.png`: a moving camera's line of sight per exposure window (the truth
+    /// table `los.csv`), absent for a still camera.
+    pub trajectory: Option<Picture>,
 }
 
 impl RunPictures {
@@ -115,12 +118,29 @@ impl RunPictures {
             }
             None => None,
         };
+        let trajectory = match &out.line_of_sight {
+            Some(truth) => Some(Picture {
+                file_name: "trajectory.png",
+                png: super::motion::trajectory_png(truth)?,
+                caption: format!(
+                    "line of sight: mean image displacement and smear per exposure window, detector pixels ({} windows; values in los.csv){}",
+                    truth.len(),
+                    if out.frames.len() > 1 {
+                        "; the sequence itself: preview.png (animated)"
+                    } else {
+                        ""
+                    }
+                ),
+            }),
+            None => None,
+        };
         Ok(RunPictures {
             dn,
             dn_stretch,
             temperature,
             histogram,
             mtf,
+            trajectory,
         })
     }
 
@@ -130,6 +150,7 @@ impl RunPictures {
         v.extend(self.temperature.as_ref());
         v.push(&self.histogram);
         v.extend(self.mtf.as_ref());
+        v.extend(self.trajectory.as_ref());
         v
     }
 

@@ -230,6 +230,30 @@ impl SystemOtf {
         })
     }
 
+    /// The same cascade with the motion component replaced: `Some((smear_rad,
+    /// direction_rad))` a linear smear over that angle along that direction (from +x toward
+    /// +y), `None` no motion component. A moving camera's sequence puts the smear of its
+    /// constant-rate motion here, or removes it when the blur is computed from the
+    /// trajectory per frame (docs/motion.md).
+    pub fn with_motion_smear(&self, smear: Option<(f64, f64)>) -> SystemOtf {
+        let mut otf = self.clone();
+        otf.components.retain(|c| *c != Component::Motion);
+        match smear {
+            Some((d, theta)) => {
+                // Report order: after the detector footprint, as `new` puts it.
+                let at = otf
+                    .components
+                    .iter()
+                    .position(|c| *c == Component::Detector)
+                    .map_or(otf.components.len(), |i| i + 1);
+                otf.components.insert(at, Component::Motion);
+                (otf.smear_rad, otf.smear_direction_rad) = (d.abs(), theta);
+            }
+            None => (otf.smear_rad, otf.smear_direction_rad) = (0.0, 0.0),
+        }
+        otf
+    }
+
     /// The enabled components, in report order.
     pub fn components(&self) -> &[Component] {
         &self.components

@@ -24,6 +24,7 @@ mod io_npy;
 mod io_raster;
 mod los;
 mod motion;
+mod moving_camera;
 mod nuc_cli;
 mod optics;
 mod otf_table;
