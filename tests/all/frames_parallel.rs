@@ -25,7 +25,9 @@ fn sequence(rows: usize, cols: usize, bands: usize, n: usize) -> (Sensor, Vec<Cu
         format!("detector.rows={rows}"),
         format!("detector.cols={cols}"),
     ];
-    let sensor = Sensor::build(&presets::load("multimir", &[], &small).unwrap()).unwrap();
+    // A still camera: these tests are about frames in flight, not motion.
+    let still = ["sequence=still".to_string()];
+    let sensor = Sensor::build(&presets::load("multimir", &still, &small).unwrap()).unwrap();
     let (lo, hi) = sensor.response().support_um();
     let params = SceneParams {
         rows,

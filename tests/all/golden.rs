@@ -88,7 +88,7 @@ fn golden_hash(preset: &str, options: &[&str], scene: &str, frames: usize) -> u6
 const GOLDEN: &[(&str, &[&str], &str, usize, u64)] = &[
     (
         "multimir",
-        &["filter=4", "optics=100mm"],
+        &["filter=4", "optics=100mm", "sequence=still"],
         "thermal",
         1,
         0x370627b9d23c5986,
@@ -106,7 +106,7 @@ const GOLDEN: &[(&str, &[&str], &str, usize, u64)] = &[
     ("ccd-bayer", &[], "thermal", 1, 0x7ff3597ab2635426),
     (
         "multimir",
-        &["filter=4", "optics=100mm"],
+        &["filter=4", "optics=100mm", "sequence=still"],
         "thermal",
         3,
         0x7c716169a8b004e0,

@@ -190,6 +190,8 @@ fn run_args<'a>(input: &'a str, out: &'a str, extra: &[&'a str]) -> Vec<&'a str>
         "run",
         "--sensor",
         "multimir",
+        "--option",
+        "sequence=still",
         "--quiet",
         "--set",
         "detector.rows=16",
