@@ -14,4 +14,4 @@ pub mod resolved;
 
 pub use config::{apply_override, SensorConfig, SpectrumConfig};
 pub use otf::{AchromaticSampler, Component, FrequencyGrid, GridOtf, SystemOtf};
-pub use resolved::Sensor;
+pub use resolved::{Sensor, Spectra};
