@@ -105,7 +105,8 @@ fn long_floats_are_found() {
         vec!["257.72102733608335"]
     );
     assert!(long_floats("257.7 K, 0.001234, 3.668e6, eoir 0.1.0, 110592 px").is_empty());
-    assert_eq!(long_floats("K = 0.0493251"), vec!["0.0493251"]);
+    assert_eq!(long_floats("K = 0.04932517"), vec!["0.04932517"]);
+    assert!(long_floats("K = 0.0493251").is_empty());
     assert_eq!(
         visible_text("<p a=\"1.23456789\">x 1.5</p><style>b{w:1.23456789}</style>"),
         " x 1.5  "
