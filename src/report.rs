@@ -380,7 +380,7 @@ impl RunReport {
                 auto_gain_reference: f
                     .model
                     .auto_gain_reference()
-                    .map(|(r, e)| format!("{r:?}: {e:.6e} e-")),
+                    .map(|(r, e)| auto_gain_text(r, e, d.auto_gain.as_ref())),
                 offset_dn: d.offset_dn,
                 bits: d.bits,
                 full_well_e: d.full_well_e,
@@ -423,6 +423,34 @@ impl RunReport {
     pub fn to_json_pretty(&self) -> Result<String> {
         serde_json::to_string_pretty(self)
             .map_err(|e| Error::param("report", "not serialisable", e.to_string()))
+    }
+}
+
+/// The auto-gain reference as a person reads it: which reference, its conditions, its
+/// electrons (4 significant figures) and the fraction of full scale it was set to, e.g.
+/// `Blackbody at 300 K: 3.668e6 e⁻ at 50 % of full scale`. Starts with the reference's name.
+fn auto_gain_text(
+    kind: crate::detector::AutoGainReference,
+    electrons: f64,
+    config: Option<&crate::detector::AutoGainConfig>,
+) -> String {
+    use crate::detector::AutoGainReference as R;
+    let e = plot::significant(electrons, 4);
+    let Some(c) = config else {
+        return format!("{kind:?}: {e} e⁻");
+    };
+    let fraction = plot::significant(100.0 * c.fraction, 3);
+    match kind {
+        R::Blackbody => format!(
+            "Blackbody at {} K: {e} e⁻ at {fraction} % of full scale",
+            plot::significant(c.reference_temperature_k, 4)
+        ),
+        R::ReflectedSun => format!(
+            "ReflectedSun (reflectance {}, sun zenith {}°): {e} e⁻ at {fraction} % of full scale",
+            plot::significant(c.reflectance, 3),
+            plot::significant(c.sun_zenith_deg, 3)
+        ),
+        R::SceneMean => format!("SceneMean: {e} e⁻ at {fraction} % of full scale"),
     }
 }
 

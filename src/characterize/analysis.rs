@@ -147,6 +147,14 @@ pub struct Characterization {
     pub darks: Vec<PairLevel>,
     /// Frames in the dark / bright spatial stacks (2 = fallback on pairs).
     pub spatial_frames: [usize; 2],
+    /// Per-pixel average of the dark spatial stack, DN, over the pixels used (for the
+    /// datasheet's DSNU histogram; not written to the JSON).
+    #[serde(skip)]
+    pub dark_mean_map_dn: Vec<f64>,
+    /// Per-pixel average of the bright spatial stack, DN, over the pixels used (for the
+    /// datasheet's PRNU histogram; not written to the JSON).
+    #[serde(skip)]
+    pub bright_mean_map_dn: Vec<f64>,
 }
 
 /// Reads one image of the set as f64, checking size and bit depth.
@@ -576,7 +584,16 @@ pub fn characterize(path: &Path) -> Result<Characterization> {
             dark_stack.len_of(ndarray::Axis(0)),
             bright_stack.len_of(ndarray::Axis(0)),
         ],
+        dark_mean_map_dn: pixel_means(&dark_stack),
+        bright_mean_map_dn: pixel_means(&bright_stack),
     })
+}
+
+/// The average over frames of every pixel of a `[frame, 1, pixel]` stack.
+fn pixel_means(stack: &Array3<f64>) -> Vec<f64> {
+    stack
+        .mean_axis(ndarray::Axis(0))
+        .map_or_else(Vec::new, |m| m.iter().copied().collect())
 }
 
 /// The net signal of the level computed from series `s` (matched by exposure and photons).

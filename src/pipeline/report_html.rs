@@ -59,6 +59,9 @@ pub struct RunPictures {
     /// `trajectory.png`: a moving camera's line of sight per exposure window (the truth
     /// table `los.csv`), absent for a still camera.
     pub trajectory: Option<Picture>,
+    /// `spectral_response.png`: filter, optics, quantum efficiency, atmosphere and their
+    /// product (absent when the sensor's band is unbounded).
+    pub spectral: Option<Picture>,
 }
 
 impl RunPictures {
@@ -134,6 +137,7 @@ impl RunPictures {
             }),
             None => None,
         };
+        let spectral = spectral_response(&out.sensor)?;
         Ok(RunPictures {
             dn,
             dn_stretch,
@@ -141,6 +145,7 @@ impl RunPictures {
             histogram,
             mtf,
             trajectory,
+            spectral,
         })
     }
 
@@ -148,8 +153,9 @@ impl RunPictures {
     pub fn all(&self) -> Vec<&Picture> {
         let mut v = vec![&self.dn];
         v.extend(self.temperature.as_ref());
-        v.push(&self.histogram);
+        v.extend(self.spectral.as_ref());
         v.extend(self.mtf.as_ref());
+        v.push(&self.histogram);
         v.extend(self.trajectory.as_ref());
         v
     }
@@ -165,6 +171,64 @@ impl RunPictures {
         }
         Ok(written)
     }
+}
+
+/// Points of the spectral-response plot.
+pub const SPECTRAL_POINTS: usize = 600;
+
+/// The spectral chain of `sensor` (filter, optics, quantum efficiency, atmosphere and
+/// their product, the response [`crate::sensor::Sensor::response`]) over the response's
+/// support widened by 8 % each side; `None` when the support is unbounded.
+fn spectral_response(sensor: &crate::sensor::Sensor) -> Result<Option<Picture>> {
+    let (lo, hi) = sensor.response().support_um();
+    if !(lo.is_finite() && hi.is_finite() && hi > lo) {
+        return Ok(None);
+    }
+    let margin = 0.08 * (hi - lo);
+    let (a, b) = ((lo - margin).max(0.0), hi + margin);
+    let x: Vec<f64> = (0..SPECTRAL_POINTS)
+        .map(|i| a + (b - a) * i as f64 / (SPECTRAL_POINTS - 1) as f64)
+        .collect();
+    let chain = sensor.spectral_chain();
+    let sample =
+        |s: &crate::spectrum::Spectrum| -> Vec<f64> { x.iter().map(|l| s.eval(*l)).collect() };
+    let mut curves: Vec<(&str, Vec<f64>)> = vec![
+        ("filter", sample(&chain.filter)),
+        ("optics", sample(&chain.optics)),
+        ("quantum efficiency", sample(&chain.qe)),
+    ];
+    if let Some(atm) = &chain.atmosphere {
+        curves.push(("atmosphere", sample(atm)));
+    }
+    curves.push(("product", sample(sensor.response())));
+    let peak = curves
+        .last()
+        .map_or(0.0, |(_, v)| v.iter().copied().fold(0.0, f64::max));
+    let title = format!("{}: spectral response", sensor.name);
+    let series = curves
+        .iter()
+        .map(|(label, y)| plot::Series { label, x: &x, y })
+        .collect();
+    let png = plot::render_line_plot(&plot::LinePlot {
+        title: &title,
+        x_label: "wavelength (µm)",
+        y_label: "transmission, quantum efficiency",
+        series,
+        markers: vec![],
+        y_range: Some((0.0, 1.05)),
+        size_px: (900, 480),
+    })?;
+    Ok(Some(Picture {
+        file_name: "spectral_response.png",
+        png,
+        caption: format!(
+            "the spectral chain from {} to {} µm: filter transmission, optics transmission, quantum efficiency{}, and their product, the electrons per photon at the aperture (peak {})",
+            plot::significant(lo, 4),
+            plot::significant(hi, 4),
+            if chain.atmosphere.is_some() { ", atmospheric path transmission" } else { "" },
+            plot::significant(peak, 3)
+        ),
+    }))
 }
 
 /// The DN histogram of frame 0, with the display stretch and full scale marked.
@@ -211,7 +275,11 @@ fn dn_histogram(out: &RunOutput, stretch: &Stretch) -> Result<Picture> {
         caption: format!(
             "DN of frame 0 in {HISTOGRAM_BINS} bins from {lo:.0} to {hi:.0} DN (the display range widened by {:.0} % each side); {below} pixels below and {above} above it; red lines: display black/white levels{}",
             HISTOGRAM_WIDEN * 100.0,
-            if full_scale <= hi { " and ADC full scale" } else { "" }
+            if full_scale <= hi {
+                " and ADC full scale".to_string()
+            } else {
+                format!(" (the ADC full scale, {full_scale:.0} DN, lies beyond the plotted range)")
+            }
         ),
     })
 }
@@ -249,31 +317,59 @@ pub fn escape_html(text: &str) -> String {
     out
 }
 
-/// A number for the page: `digits` significant figures in plain or scientific notation;
-/// `—` when absent or not finite.
+/// A number for the page: `digits` significant figures ([`plot::significant`]); `—` when
+/// absent or not finite.
 fn num(v: Option<f64>, digits: usize) -> String {
-    match v {
-        Some(0.0) => "0".to_string(),
-        Some(x) if x.is_finite() => {
-            let a = x.abs();
-            if a != 0.0 && !(1e-3..1e6).contains(&a) {
-                format!("{:.*e}", digits.saturating_sub(1), x)
-            } else {
-                let int_digits = if a >= 1.0 {
-                    a.log10().floor() as usize + 1
-                } else {
-                    1
-                };
-                let decimals = digits.saturating_sub(int_digits).max(if a < 1.0 {
-                    digits + (-(a.max(1e-300)).log10()).floor() as usize
-                } else {
-                    0
-                });
-                format!("{x:.decimals$}")
-            }
-        }
-        _ => "—".to_string(),
-    }
+    v.map_or_else(|| "—".to_string(), |x| plot::significant(x, digits))
+}
+
+/// Radiance units as a person reads them: `W m-2 sr-1 um-1` → `W m⁻² sr⁻¹ µm⁻¹`
+/// (exponents as superscripts, `um` as `µm`); other text unchanged.
+pub fn unicode_units(units: &str) -> String {
+    units
+        .split(' ')
+        .map(|word| {
+            let (base, exp) = match word.find(|c: char| c == '-' || c.is_ascii_digit()) {
+                Some(i)
+                    if i > 0
+                        && word[i..]
+                            .trim_start_matches('-')
+                            .chars()
+                            .all(|c| c.is_ascii_digit()) =>
+                {
+                    (&word[..i], &word[i..])
+                }
+                _ => (word, ""),
+            };
+            let base = if base == "um" { "µm" } else { base };
+            let sup: String = exp
+                .chars()
+                .map(|c| match c {
+                    '-' => '⁻',
+                    '0' => '⁰',
+                    '1' => '¹',
+                    '2' => '²',
+                    '3' => '³',
+                    '4' => '⁴',
+                    '5' => '⁵',
+                    '6' => '⁶',
+                    '7' => '⁷',
+                    '8' => '⁸',
+                    _ => '⁹',
+                })
+                .collect();
+            format!("{base}{sup}")
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Free text (a sensor's description) with `um` as a word written `µm`.
+fn prose_units(text: &str) -> String {
+    text.split(' ')
+        .map(|w| if w == "um" { "µm" } else { w })
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// One table row; `id`, when given, names the value cell for scripts and tests.
@@ -286,31 +382,75 @@ fn row(html: &mut String, label: &str, value: &str, id: Option<&str>) {
     );
 }
 
-/// The page for `out` with `pictures` inline.
-pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
-    let r: Value = serde_json::to_value(&out.report)
-        .map_err(|e| Error::param("run report", e.to_string(), "a serialisable report"))?;
-    let f = |ptr: &str| r.pointer(ptr).and_then(Value::as_f64);
-    let s = |ptr: &str| {
-        r.pointer(ptr)
-            .map(|v| match v {
+/// The run report as JSON, read by pointer, with numbers rounded for the page.
+struct Facts {
+    r: Value,
+}
+
+impl Facts {
+    /// A number.
+    fn f(&self, ptr: &str) -> Option<f64> {
+        self.r.pointer(ptr).and_then(Value::as_f64)
+    }
+
+    /// A value as text: strings as they are, numbers to 6 significant figures (integers
+    /// whole), lists as `a, b, c`; `—` when absent.
+    fn s(&self, ptr: &str) -> String {
+        fn text(v: &Value) -> String {
+            match v {
                 Value::String(t) => t.clone(),
                 Value::Null => "—".to_string(),
-                // Lists (MTF components, blackbody levels) as `a, b, c`, not JSON.
-                Value::Array(items) => items
-                    .iter()
-                    .map(|i| match i {
-                        Value::String(t) => t.clone(),
-                        other => other.to_string(),
-                    })
-                    .collect::<Vec<_>>()
-                    .join(", "),
+                Value::Number(n) if n.is_f64() => {
+                    plot::significant(n.as_f64().unwrap_or(f64::NAN), 6)
+                }
+                Value::Array(items) => items.iter().map(text).collect::<Vec<_>>().join(", "),
                 other => other.to_string(),
+            }
+        }
+        self.r.pointer(ptr).map_or_else(|| "—".to_string(), text)
+    }
+
+    /// A list of numbers, each to `digits` significant figures, as `a, b, c`.
+    fn list(&self, ptr: &str, digits: usize) -> String {
+        self.r
+            .pointer(ptr)
+            .and_then(Value::as_array)
+            .map(|a| {
+                a.iter()
+                    .map(|v| num(v.as_f64(), digits))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             })
             .unwrap_or_else(|| "—".to_string())
+    }
+}
+
+/// The page for `out` with `pictures` inline: one function per section, in page order.
+pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
+    let facts = Facts {
+        r: serde_json::to_value(&out.report)
+            .map_err(|e| Error::param("run report", e.to_string(), "a serialisable report"))?,
     };
+    let mut h = String::new();
+    section_head(&mut h, out, &facts);
+    section_warnings(&mut h, &facts);
+    section_cards(&mut h, &facts);
+    h.push_str("<div class=\"grid\">\n");
+    section_optics(&mut h, &facts);
+    section_sampling(&mut h, &facts);
+    section_detector(&mut h, &facts);
+    section_calibration(&mut h, &facts);
+    h.push_str("</div>\n");
+    section_pictures(&mut h, pictures);
+    section_footer(&mut h, &facts);
+    Ok(h)
+}
+
+/// `<head>`, title and the header: sensor, description, options, seed, input, version.
+fn section_head(h: &mut String, out: &RunOutput, facts: &Facts) {
     let sensor = &out.sensor;
-    let options = r
+    let options = facts
+        .r
         .pointer("/options")
         .and_then(Value::as_object)
         .map(|o| {
@@ -321,7 +461,6 @@ pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
         })
         .filter(|t| !t.is_empty())
         .unwrap_or_else(|| "none".to_string());
-    let mut h = String::new();
     let title = format!("eoir run: {}", sensor.name);
     let _ = writeln!(
         h,
@@ -332,13 +471,18 @@ pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
         h,
         "<header><h1>{}</h1><p>{}</p><p class=\"meta\">options: {} · seed {} · input {} · eoir {}</p></header>",
         escape_html(&sensor.name),
-        escape_html(&sensor.description),
+        escape_html(&prose_units(&sensor.description)),
         escape_html(&options),
-        escape_html(&s("/seed")),
-        escape_html(&s("/input/name")),
-        escape_html(&s("/eoir_version")),
+        escape_html(&facts.s("/seed")),
+        escape_html(&facts.s("/input/name")),
+        escape_html(&facts.s("/eoir_version")),
     );
-    let warnings: Vec<String> = r
+}
+
+/// The run's warnings (or "none").
+fn section_warnings(h: &mut String, facts: &Facts) {
+    let warnings: Vec<String> = facts
+        .r
         .pointer("/warnings")
         .and_then(Value::as_array)
         .map(|a| {
@@ -358,9 +502,13 @@ pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
         }
         h.push_str("</ul></section>\n");
     }
-    // Key figures.
-    let netd_mk = f("/calibration/netd_analytic_k_at_300k").map(|k| k * 1e3);
-    let netd_meas_mk = f("/calibration/netd_measured_k_at_300k").map(|k| k * 1e3);
+}
+
+/// The key figures: SNR, NETD, MTF at Nyquist, saturation.
+fn section_cards(h: &mut String, facts: &Facts) {
+    let netd_mk = facts
+        .f("/calibration/netd_analytic_k_at_300k")
+        .map(|k| k * 1e3);
     h.push_str("<section class=\"cards\">\n");
     let card = |h: &mut String, label: &str, value: String, unit: &str, id: &str| {
         let _ = writeln!(
@@ -369,34 +517,38 @@ pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
         );
     };
     card(
-        &mut h,
+        h,
         "SNR (mean signal)",
-        num(f("/signal/snr"), 4),
+        num(facts.f("/signal/snr"), 4),
         "",
         "snr",
     );
     if netd_mk.is_some() {
-        card(&mut h, "NETD at 300 K", num(netd_mk, 3), "mK", "netd_mk");
+        card(h, "NETD at 300 K", num(netd_mk, 3), "mK", "netd_mk");
     }
     card(
-        &mut h,
+        h,
         "MTF at Nyquist",
-        num(f("/optics/mtf_at_nyquist"), 3),
+        num(facts.f("/optics/mtf_at_nyquist"), 3),
         "",
         "mtf_nyquist",
     );
     card(
-        &mut h,
+        h,
         "saturated",
-        num(f("/signal/saturated_percent"), 3),
+        num(facts.f("/signal/saturated_percent"), 3),
         "%",
         "saturated_percent",
     );
-    h.push_str("</section>\n<div class=\"grid\">\n");
+    h.push_str("</section>\n");
+}
 
+/// Optics: focal length, F-number, IFOV, field of view, mean wavelength, λF#/pitch.
+fn section_optics(h: &mut String, facts: &Facts) {
+    let f = |p: &str| facts.f(p);
     h.push_str("<section><h2>Optics</h2><table>\n");
     row(
-        &mut h,
+        h,
         "focal length",
         &format!(
             "{} mm",
@@ -405,51 +557,55 @@ pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
         Some("focal_length_mm"),
     );
     row(
-        &mut h,
+        h,
         "F-number",
         &num(f("/optics/f_number"), 3),
         Some("f_number"),
     );
     row(
-        &mut h,
+        h,
         "IFOV",
         &format!("{} µrad", num(f("/optics/ifov_urad"), 4)),
         Some("ifov_urad"),
     );
-    let fov = r.pointer("/optics/fov_deg").and_then(Value::as_array);
+    let fov = facts.r.pointer("/optics/fov_deg").and_then(Value::as_array);
     let fov_text = fov
         .map(|a| {
             format!(
-                "{} × {} °",
+                "{} × {}°",
                 num(a.first().and_then(Value::as_f64), 4),
                 num(a.get(1).and_then(Value::as_f64), 4)
             )
         })
         .unwrap_or_else(|| "—".into());
-    row(&mut h, "field of view", &fov_text, None);
+    row(h, "field of view", &fov_text, None);
     row(
-        &mut h,
+        h,
         "mean wavelength",
         &format!("{} µm", num(f("/optics/mean_wavelength_um"), 4)),
         None,
     );
     row(
-        &mut h,
+        h,
         "λF#/pitch",
         &num(f("/optics/lambda_f_number_over_pitch"), 3),
         Some("lambda_f_number_over_pitch"),
     );
     row(
-        &mut h,
+        h,
         "MTF components",
-        &escape_html(&s("/optics/components")),
+        &escape_html(&facts.s("/optics/components")),
         None,
     );
     h.push_str("</table></section>\n");
+}
 
+/// Sampling: input size and units, scene/detector ratio and method, detector size.
+fn section_sampling(h: &mut String, facts: &Facts) {
+    let s = |p: &str| facts.s(p);
     h.push_str("<section><h2>Sampling</h2><table>\n");
     row(
-        &mut h,
+        h,
         "input",
         &format!(
             "{} × {} px, {} bands ({} used), {} frame(s)",
@@ -462,24 +618,24 @@ pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
         None,
     );
     row(
-        &mut h,
+        h,
         "input units",
-        &escape_html(&s("/input/units")),
+        &escape_html(&unicode_units(&s("/input/units"))),
         None,
     );
     row(
-        &mut h,
+        h,
         "scene/detector sampling",
         &format!(
             "{} × {}",
-            num(f("/sampling/ratio_x"), 6),
-            num(f("/sampling/ratio_y"), 6)
+            num(facts.f("/sampling/ratio_x"), 6),
+            num(facts.f("/sampling/ratio_y"), 6)
         ),
         Some("sampling_ratio"),
     );
-    row(&mut h, "method", &escape_html(&s("/sampling/method")), None);
+    row(h, "method", &escape_html(&s("/sampling/method")), None);
     row(
-        &mut h,
+        h,
         "detector",
         &format!(
             "{} × {} px, {} bit",
@@ -490,40 +646,45 @@ pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
         None,
     );
     h.push_str("</table></section>\n");
+}
 
+/// Detector and noise: gain, auto-gain reference, full well, dark, read noise, signal,
+/// temporal noise, SNR, saturation.
+fn section_detector(h: &mut String, facts: &Facts) {
+    let f = |p: &str| facts.f(p);
     h.push_str("<section><h2>Detector and noise</h2><table>\n");
     row(
-        &mut h,
+        h,
         "conversion gain K",
         &format!("{} DN/e⁻", num(f("/detector/gain_dn_per_e"), 4)),
         Some("gain_dn_per_e"),
     );
     row(
-        &mut h,
+        h,
         "auto-gain reference",
-        &escape_html(&s("/detector/auto_gain_reference")),
+        &escape_html(&facts.s("/detector/auto_gain_reference")),
         None,
     );
     row(
-        &mut h,
+        h,
         "full well",
         &format!("{} e⁻", num(f("/detector/full_well_e"), 4)),
         None,
     );
     row(
-        &mut h,
+        h,
         "dark signal",
         &format!("{} e⁻", num(f("/detector/dark_e"), 4)),
         None,
     );
     row(
-        &mut h,
+        h,
         "read noise",
         &format!("{} e⁻", num(f("/detector/read_noise_e"), 4)),
         None,
     );
     row(
-        &mut h,
+        h,
         "mean signal",
         &format!(
             "{} e⁻ ({} DN)",
@@ -533,77 +694,90 @@ pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
         Some("mean_electrons"),
     );
     row(
-        &mut h,
+        h,
         "temporal noise",
         &format!("{} e⁻", num(f("/signal/temporal_noise_e"), 4)),
         Some("temporal_noise_e"),
     );
-    row(&mut h, "SNR", &num(f("/signal/snr"), 4), None);
+    row(h, "SNR", &num(f("/signal/snr"), 4), None);
     row(
-        &mut h,
+        h,
         "saturated pixels",
         &format!("{} %", num(f("/signal/saturated_percent"), 3)),
         None,
     );
     h.push_str("</table></section>\n");
+}
 
-    if r.pointer("/calibration").is_some_and(|c| !c.is_null()) {
-        h.push_str("<section><h2>Calibration</h2><table>\n");
-        row(
-            &mut h,
-            "NUC degree",
-            &escape_html(&s("/calibration/nuc_degree")),
-            None,
-        );
-        row(
-            &mut h,
-            "blackbody levels",
-            &format!("{} K", escape_html(&s("/calibration/temperatures_k"))),
-            None,
-        );
-        row(
-            &mut h,
-            "NETD at 300 K (analytic)",
-            &format!("{} mK", num(netd_mk, 4)),
-            None,
-        );
-        row(
-            &mut h,
-            "NETD at 300 K (measured)",
-            &format!("{} mK", num(netd_meas_mk, 4)),
-            Some("netd_measured_mk"),
-        );
-        row(
-            &mut h,
-            "bad pixels",
-            &escape_html(&s("/calibration/bad_pixels")),
-            None,
-        );
-        let nu =
-            |k: &str| f(&format!("/calibration/residual_nonuniformity/{k}")).map(|v| v * 100.0);
-        row(
-            &mut h,
-            "non-uniformity σ/μ (flat field)",
-            &format!(
-                "raw {} %, after NUC {} %, temporal floor {} %",
-                num(nu("raw"), 3),
-                num(nu("corrected"), 3),
-                num(nu("temporal_floor"), 3)
-            ),
-            None,
-        );
-        row(
-            &mut h,
-            "pixels without temperature",
-            &escape_html(&s("/calibration/uninvertible_pixels")),
-            None,
-        );
-        h.push_str("</table></section>\n");
+/// Calibration (thermal sensors): NUC, blackbody levels, NETD, bad pixels, residual
+/// non-uniformity, pixels without temperature.
+fn section_calibration(h: &mut String, facts: &Facts) {
+    if !facts
+        .r
+        .pointer("/calibration")
+        .is_some_and(|c| !c.is_null())
+    {
+        return;
     }
-    h.push_str("</div>\n");
+    let f = |p: &str| facts.f(p);
+    let netd_mk = f("/calibration/netd_analytic_k_at_300k").map(|k| k * 1e3);
+    let netd_meas_mk = f("/calibration/netd_measured_k_at_300k").map(|k| k * 1e3);
+    h.push_str("<section><h2>Calibration</h2><table>\n");
+    row(
+        h,
+        "NUC degree",
+        &escape_html(&facts.s("/calibration/nuc_degree")),
+        None,
+    );
+    row(
+        h,
+        "blackbody levels",
+        &format!("{} K", facts.list("/calibration/temperatures_k", 4)),
+        None,
+    );
+    row(
+        h,
+        "NETD at 300 K (analytic)",
+        &format!("{} mK", num(netd_mk, 4)),
+        None,
+    );
+    row(
+        h,
+        "NETD at 300 K (measured)",
+        &format!("{} mK", num(netd_meas_mk, 4)),
+        Some("netd_measured_mk"),
+    );
+    row(
+        h,
+        "bad pixels",
+        &escape_html(&facts.s("/calibration/bad_pixels")),
+        None,
+    );
+    let nu = |k: &str| f(&format!("/calibration/residual_nonuniformity/{k}")).map(|v| v * 100.0);
+    row(
+        h,
+        "non-uniformity σ/μ (flat field)",
+        &format!(
+            "raw {} %, after NUC {} %, temporal floor {} %",
+            num(nu("raw"), 3),
+            num(nu("corrected"), 3),
+            num(nu("temporal_floor"), 3)
+        ),
+        None,
+    );
+    row(
+        h,
+        "pixels without temperature",
+        &escape_html(&facts.s("/calibration/uninvertible_pixels")),
+        None,
+    );
+    h.push_str("</table></section>\n");
+}
 
+/// The pictures, each a `<figure>` with its caption; a small `dn.png` enlarged by a whole
+/// factor with square pixels.
+fn section_pictures(h: &mut String, pictures: &RunPictures) {
     for p in pictures.all() {
-        // dn.png holds one pixel per detector pixel: enlarge a small one by a whole factor.
         let (w, ht) = png_size(&p.png).unwrap_or((0, 0));
         let (scale, class) = if p.file_name == "dn.png" {
             (dn_display_scale(w), " class=\"pixels\"")
@@ -626,13 +800,15 @@ pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
             escape_html(&p.caption)
         );
     }
-    let timing = f("/timings_s/total");
+}
+
+/// Run time and the list of raw products.
+fn section_footer(h: &mut String, facts: &Facts) {
     let _ = writeln!(
         h,
         "<footer>run time {} s · products: dn.tiff (raw DN), electrons_mean.tiff/.exr, config.toml, report.json</footer>\n</body>\n</html>",
-        num(timing, 3)
+        num(facts.f("/timings_s/total"), 3)
     );
-    Ok(h)
 }
 
 /// Writes the pictures and `report.html` into `dir`. Returns the paths written.
@@ -688,11 +864,19 @@ mod tests {
     }
 
     #[test]
+    fn units_are_written_with_superscripts() {
+        assert_eq!(unicode_units("W m-2 sr-1 um-1"), "W m⁻² sr⁻¹ µm⁻¹");
+        assert_eq!(unicode_units("W m-2 sr-1"), "W m⁻² sr⁻¹");
+        assert_eq!(unicode_units("per band"), "per band");
+    }
+
+    #[test]
     fn numbers_keep_significant_digits() {
         assert_eq!(num(Some(16.76), 3), "16.8");
         assert_eq!(num(Some(1634.8), 4), "1635");
         assert_eq!(num(Some(0.0536), 3), "0.0536");
         assert_eq!(num(Some(2.9961e6), 5), "2.9961e6");
+        assert_eq!(num(Some(257.72102733608335), 4), "257.7");
         assert_eq!(num(None, 3), "—");
         assert_eq!(num(Some(f64::NAN), 3), "—");
     }

@@ -15,4 +15,4 @@ pub mod resolved;
 pub use config::MotionConfig;
 pub use config::{apply_override, SensorConfig, SpectrumConfig};
 pub use otf::{AchromaticSampler, Component, FrequencyGrid, GridOtf, SystemOtf};
-pub use resolved::Sensor;
+pub use resolved::{Sensor, Spectra};

@@ -41,6 +41,7 @@ pub struct Sensor {
     config: SensorConfig,
     response: Spectrum,
     filter_qe: Spectrum,
+    chain: Spectra,
     camera: CameraEquation,
     otf: SystemOtf,
     detector: DetectorModel,
@@ -57,12 +58,18 @@ impl Deref for Sensor {
     }
 }
 
-/// The spectra a sensor file names, each built (and any CSV read) once.
-struct Spectra {
-    filter: Spectrum,
-    optics: Spectrum,
-    qe: Spectrum,
-    atmosphere: Option<Spectrum>,
+/// The spectra a sensor file names, each built (and any CSV read) once: the factors of
+/// the spectral response ([`Sensor::spectral_chain`]).
+#[derive(Debug, Clone)]
+pub struct Spectra {
+    /// Filter transmission (`[filter]`; for a colour-filter-array channel, times its dye).
+    pub filter: Spectrum,
+    /// Optics transmission (`optics.transmission`).
+    pub optics: Spectrum,
+    /// Quantum efficiency (`detector.quantum_efficiency`).
+    pub qe: Spectrum,
+    /// Path transmission (`[atmosphere]`), if the file has one.
+    pub atmosphere: Option<Spectrum>,
 }
 
 impl Spectra {
@@ -147,6 +154,10 @@ impl Sensor {
                 channels.push(Sensor {
                     response: spectra.chain(&filter),
                     filter_qe: filter.product(&spectra.qe),
+                    chain: Spectra {
+                        filter,
+                        ..spectra.clone()
+                    },
                     config: channel_config,
                     camera,
                     otf: otf.clone(),
@@ -162,6 +173,7 @@ impl Sensor {
             config: config.clone(),
             response,
             filter_qe,
+            chain: spectra,
             camera,
             otf,
             detector,
@@ -186,6 +198,12 @@ impl Sensor {
     /// aperture: τ_filter · τ_optics · η · τ_atm (docs/design.md §1).
     pub fn response(&self) -> &Spectrum {
         &self.response
+    }
+
+    /// The factors of [`Sensor::response`]: filter, optics, quantum efficiency and
+    /// atmosphere, as the sensor file gives them (for plots and reports).
+    pub fn spectral_chain(&self) -> &Spectra {
+        &self.chain
     }
 
     /// The on-axis camera equation (docs/design.md §4.1).

@@ -200,9 +200,21 @@ fn cli_simulates_and_characterises_with_datasheet() {
     let k = json["K_DN_per_e"].as_f64().unwrap();
     assert!(rel(k, truth["K_DN_per_e"].as_f64().unwrap()) < 0.05);
     let html = std::fs::read_to_string(out_dir.join("characterization.html")).unwrap();
-    assert_eq!(html.matches("src=\"data:image/png;base64,").count(), 2);
+    // A simulated set gives photon counts: the linearity plot is drawn too, and the DSNU
+    // and PRNU histograms of its stacks.
+    let pngs = [
+        "ptc.png",
+        "snr.png",
+        "linearity.png",
+        "dsnu.png",
+        "prnu.png",
+    ];
+    assert_eq!(
+        html.matches("src=\"data:image/png;base64,").count(),
+        pngs.len()
+    );
     assert!(!html.contains("src=\"ptc.png\""));
-    for png in ["ptc.png", "snr.png"] {
+    for png in pngs {
         let bytes = std::fs::read(out_dir.join(png)).unwrap();
         assert_eq!(&bytes[1..4], b"PNG");
         // The inlined image is this file, base64-encoded.

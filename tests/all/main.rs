@@ -9,6 +9,7 @@ mod cfa;
 mod characterize;
 mod cli;
 mod detector;
+mod docs;
 mod edge_mtf;
 mod edge_mtf_cli;
 mod frames_parallel;

@@ -103,8 +103,11 @@ fn thermal_demo_writes_colour_temperature_histogram_and_self_contained_page() {
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("report.json")).unwrap())
             .unwrap();
-    // Self-contained: four inline pictures, no external resource or script.
-    assert_eq!(html.matches("src=\"data:image/png;base64,").count(), 4);
+    // Self-contained: five inline pictures (DN, temperature, spectral response, MTF,
+    // histogram), no external resource or script.
+    assert_eq!(html.matches("src=\"data:image/png;base64,").count(), 5);
+    let spectral = std::fs::read(dir.path().join("spectral_response.png")).unwrap();
+    assert!(html.contains(&eoir::display::base64(&spectral)));
     for forbidden in ["http://", "https://", "<script", "<link"] {
         assert!(!html.contains(forbidden), "{forbidden}");
     }
@@ -281,4 +284,30 @@ fn coarser_scene_warning_has_a_tolerance_and_enough_digits() {
     let w = warnings(0.9);
     assert_eq!(w.len(), 1);
     assert!(w[0].contains("0.90000 x 0.90000"), "{}", w[0]);
+}
+
+/// The factors the spectral-response plot draws are the preset's own curves (the values
+/// written in `sensors/multimir.toml`, filter 4: a 0.85 top hat over 4.55–5.2 µm, optics
+/// 0.9, QE 0.7 up to 5.0 µm falling to 0.35 at 5.2 µm) and multiply to the response the
+/// run integrates.
+#[test]
+fn spectral_chain_holds_the_preset_curves_and_multiplies_to_the_response() {
+    let config = eoir::sensor::presets::load("multimir", &[], &[]).unwrap();
+    let sensor = eoir::sensor::Sensor::build(&config).unwrap();
+    let chain = sensor.spectral_chain();
+    assert!(chain.atmosphere.is_none());
+    for (l, filter, qe) in [(4.8, 0.85, 0.7), (5.1, 0.85, 0.525), (4.4, 0.0, 0.7)] {
+        assert!(
+            (chain.filter.eval(l) - filter).abs() < 1e-12,
+            "filter at {l}"
+        );
+        assert!((chain.optics.eval(l) - 0.9).abs() < 1e-12, "optics at {l}");
+        assert!((chain.qe.eval(l) - qe).abs() < 1e-12, "QE at {l}");
+        let product = filter * 0.9 * qe;
+        assert!(
+            (sensor.response().eval(l) - product).abs() < 1e-12,
+            "response at {l}: {} vs {product}",
+            sensor.response().eval(l)
+        );
+    }
 }
