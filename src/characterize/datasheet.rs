@@ -75,7 +75,9 @@ pub fn write_outputs(c: &Characterization, out: &Path, title: &str) -> Result<()
         .map(|l| (l.net_mean_dn / c.K_DN_per_e).log10())
         .collect();
     let ys: Vec<f64> = pos.iter().map(|l| l.snr.log10()).collect();
-    let sd2 = c.sigma_d_e * c.sigma_d_e;
+    // EMVA 1288 Release 4.0: SNR = μ_e/√(σ_d² + σ_q²/K² + μ_e), σ_d² + σ_q²/K² being
+    // σ_y.dark²/K² (the floored σ_y.dark).
+    let sd2 = (c.sigma_y_dark_DN / c.K_DN_per_e).powi(2);
     let model: Vec<f64> = pos
         .iter()
         .map(|l| {
@@ -98,7 +100,7 @@ pub fn write_outputs(c: &Characterization, out: &Path, title: &str) -> Result<()
                     y: &ys,
                 },
                 Series {
-                    label: "model  mu_e / sqrt(sigma_d^2 + mu_e)",
+                    label: "model  mu_e / sqrt(sigma_d^2 + sigma_q^2/K^2 + mu_e)",
                     x: &xe,
                     y: &model,
                 },
@@ -138,86 +140,132 @@ fn escape(s: &str) -> String {
 /// The datasheet page.
 fn page(c: &Characterization, title: &str, ptc_uri: &str, snr_uri: &str) -> String {
     let mut rows = String::new();
-    let mut row = |name: &str, value: String, unit: &str| {
-        let _ = writeln!(
+    // The standard uncertainty of the figure a row shows, with the row's own digits.
+    let pm = |field: &str, digits: usize| -> String {
+        c.uncertainties
+            .get(field)
+            .map_or_else(String::new, |u| format!("{u:.digits$}"))
+    };
+    let mut row = |name: &str, value: String, unit: &str, u: String| {
+        let _ =
+            writeln!(
             rows,
-            "<tr><td>{name}</td><td class=v>{value}</td><td>{unit}</td></tr>"
+            "<tr><td>{name}</td><td class=v>{value}</td><td class=v>{}</td><td>{unit}</td></tr>",
+            if u.is_empty() { String::new() } else { format!("± {u}") }
         );
     };
-    row("System gain K", format!("{:.5}", c.K_DN_per_e), "DN/e⁻");
+    row(
+        "System gain K",
+        format!("{:.5}", c.K_DN_per_e),
+        "DN/e⁻",
+        pm("K_DN_per_e", 5),
+    );
     row(
         "Inverse system gain 1/K",
         format!("{:.4}", 1.0 / c.K_DN_per_e),
         "e⁻/DN",
+        pm("inverse_K_e_per_DN", 4),
     );
-    row("Quantum efficiency η", opt(c.QE_percent, 2), "%");
+    row(
+        "Quantum efficiency η",
+        opt(c.QE_percent, 2),
+        "%",
+        pm("QE_percent", 2),
+    );
     row(
         "Temporal dark noise σ_d",
         format!("{:.3}", c.sigma_d_e),
         "e⁻",
+        pm("sigma_d_e", 3),
     );
     row(
         "Temporal dark noise σ_y.dark",
         format!("{:.3}", c.sigma_y_dark_DN),
         "DN",
+        pm("sigma_y_dark_DN", 3),
     );
-    row("DSNU₁₂₈₈", format!("{:.3}", c.DSNU1288_e), "e⁻");
-    row("PRNU₁₂₈₈", format!("{:.3}", c.PRNU1288_percent), "%");
+    row(
+        "DSNU₁₂₈₈",
+        format!("{:.3}", c.DSNU1288_e),
+        "e⁻",
+        pm("DSNU1288_e", 3),
+    );
+    row(
+        "PRNU₁₂₈₈",
+        format!("{:.3}", c.PRNU1288_percent),
+        "%",
+        pm("PRNU1288_percent", 3),
+    );
     row(
         "Saturation capacity μ_e.sat",
         format!("{:.1}", c.u_e_sat_e),
         "e⁻",
+        pm("u_e_sat_e", 1),
     );
     row(
         "Absolute sensitivity threshold μ_e.min",
         format!("{:.3}", c.u_e_min_e),
         "e⁻",
+        pm("u_e_min_e", 3),
     );
     row(
         "Absolute sensitivity threshold μ_p.min",
         opt(c.u_p_min, 2),
         "photons",
+        pm("u_p_min", 2),
     );
     row(
         "SNR_max",
         format!("{:.1} ({:.1} dB)", c.SNR_max, c.SNR_max_dB),
         "",
+        pm("SNR_max", 1),
     );
     row(
         "Dynamic range",
         format!("{:.1} ({:.1} dB)", c.DR, c.DR_dB),
         "",
+        pm("DR", 1),
     );
-    row("Linearity error LE", opt(c.linearity_error_percent, 3), "%");
+    row(
+        "Linearity error LE",
+        opt(c.linearity_error_percent, 3),
+        "%",
+        pm("linearity_error_percent", 3),
+    );
     row(
         "Dark current (mean)",
         opt(c.dark_current_mean_e_per_s, 4),
         "e⁻/s",
+        pm("dark_current_mean_e_per_s", 4),
     );
     row(
         "Dark current (variance)",
         opt(c.dark_current_variance_e_per_s, 4),
         "e⁻/s",
+        pm("dark_current_variance_e_per_s", 4),
     );
     row(
         "Pixels used / defective",
         format!("{} / {}", c.pixels_used, c.defective_pixels),
         "",
+        String::new(),
     );
     row(
         "Photon-transfer pairs / in fit",
         format!("{} / {}", c.levels.len(), c.fit_levels),
         "",
+        String::new(),
     );
     let mut notes = String::new();
+    for w in &c.warnings {
+        let _ = write!(notes, "<p class=warn>{}</p>", escape(w));
+    }
     if c.saturation_at_brightest_level {
         notes.push_str("<p class=warn>The temporal variance still rises at the brightest level: the saturation capacity is only a lower bound.</p>");
     }
-    if c.sigma_d_quantisation_limited {
-        notes.push_str("<p class=warn>σ_y.dark² &lt; 0.24 DN²: the dark noise is quantisation-limited and σ_d is an upper limit.</p>");
-    }
+
     format!(
-        "<!DOCTYPE html>\n<html lang=en><head><meta charset=utf-8><title>EMVA 1288 characterisation — {t}</title>\n<style>body{{font-family:sans-serif;max-width:900px;margin:2em auto;color:#222}}table{{border-collapse:collapse}}td{{padding:3px 10px;border-bottom:1px solid #ddd}}td.v{{text-align:right;font-variant-numeric:tabular-nums}}.warn{{color:#a40}}img{{max-width:100%}}</style></head>\n<body><h1>EMVA 1288 characterisation</h1><p>{t} — {w} × {h} pixels, {bits} bit. Method: EMVA Standard 1288 Release 4.0 Linear (photon transfer from frame pairs, non-uniformity from averaged stacks).</p>\n<table>\n{rows}</table>\n{notes}<h2>Photon transfer</h2><img alt=\"photon transfer curve\" src=\"{ptc_uri}\">\n<h2>SNR</h2><img alt=\"SNR curve\" src=\"{snr_uri}\">\n</body></html>\n",
+        "<!DOCTYPE html>\n<html lang=en><head><meta charset=utf-8><title>EMVA 1288 characterisation — {t}</title>\n<style>body{{font-family:sans-serif;max-width:900px;margin:2em auto;color:#222}}table{{border-collapse:collapse}}td{{padding:3px 10px;border-bottom:1px solid #ddd}}td.v{{text-align:right;font-variant-numeric:tabular-nums}}.warn{{color:#a40}}img{{max-width:100%}}</style></head>\n<body><h1>EMVA 1288 characterisation</h1><p>{t} — {w} × {h} pixels, {bits} bit. Method: EMVA Standard 1288 Release 4.0 Linear (photon transfer from frame pairs, non-uniformity from averaged stacks); ± is the standard uncertainty (1σ, statistical).</p>\n<table>\n{rows}</table>\n{notes}<h2>Photon transfer</h2><img alt=\"photon transfer curve\" src=\"{ptc_uri}\">\n<h2>SNR</h2><img alt=\"SNR curve\" src=\"{snr_uri}\">\n</body></html>\n",
         t = escape(title),
         w = c.image_size[0],
         h = c.image_size[1],
