@@ -232,9 +232,9 @@ impl RadialTables {
         if defocus_chromatic {
             aperture_parts.retain(|c| *c != Component::Defocus);
         }
-        let aperture = (!aperture_parts.is_empty()
-            || (defocus_chromatic && on(Component::Defocus)))
-        .then(|| {
+        // An aperture table (0 beyond X = 1) only with an aperture term; defocus without
+        // one is the geometric blur disc, which has no cutoff.
+        let aperture = (!aperture_parts.is_empty()).then(|| {
             Table1d::build(
                 |x| {
                     aperture_parts

@@ -11,7 +11,7 @@
 //! through bright sources (issue 38: +0.8 % along the column of a saturated exhaust).
 //!
 //! The treatment is a radial raised-cosine taper of the OTF, `T(ρ) = 1` up to
-//! `ρ_a = `[`TAPER_START_FRACTION`]`·ρ_N`, `½(1 + cos(π(ρ − ρ_a)/(ρ_N − ρ_a)))` up to the
+//! `ρ_a = `[`TAPER_START_FRACTION`]`·ρ_N` (half of it), `½(1 + cos(π(ρ − ρ_a)/(ρ_N − ρ_a)))` up to the
 //! grid's *inscribed* Nyquist circle `ρ_N = min(1/(2dx), 1/(2dy))`, and 0 beyond. The
 //! tapered OTF is zero in a neighbourhood of the square's edges, so its periodic
 //! repetition is smooth and isotropic: no cross. It is radial, so it multiplies the
@@ -24,14 +24,17 @@
 
 use crate::sensor::{Component, SystemOtf};
 
-/// Where the taper starts, as a fraction of the inscribed Nyquist frequency `ρ_N`.
+/// Where the taper starts, as a fraction of the inscribed Nyquist frequency `ρ_N`: 0.5.
 ///
-/// A compromise between the two things a taper costs: the ramp's width (here 0.1 cycle per
-/// scene sample, ρ_N being 0.5) sets how far the taper's own ringing reaches, about
-/// 1/0.1 = 10 scene samples (and that ringing is isotropic: rings, not a cross), and its
-/// start sets how much of the scene's genuine content between `ρ_a` and `ρ_N` is
-/// attenuated.
-pub const TAPER_START_FRACTION: f64 = 0.8;
+/// The ramp's width sets how far the taper's own ringing reaches (it is isotropic, rings
+/// rather than a cross, but the detector samples those rings at one phase along a row):
+/// over 0.5 … 1 ρ_N, a quarter cycle per scene sample, it spans a few samples. Its start
+/// sets which genuine content of the scene is attenuated: at k = 2 scene samples per
+/// pixel, 0.5 ρ_N is the detector's own Nyquist frequency, so only frequencies the
+/// detector aliases are touched (at k = 1 the upper half of the detector's band is).
+/// A ramp over 0.8 … 1 ρ_N left its rings 30 % above the halo 30–44 px from a point
+/// source at k = 2 (`imaging::bright_sources_leave_no_cross_at_k2_and_k4`).
+pub const TAPER_START_FRACTION: f64 = 0.5;
 
 /// The radial taper applied to the system OTF of a scene grid sampled more coarsely than
 /// the optics (module documentation).
@@ -149,12 +152,12 @@ mod tests {
         let n = 0.5 / 2e-5;
         assert_eq!(t.nyquist_cy_per_rad, n);
         assert_eq!(t.factor(0.0), 1.0);
-        assert_eq!(t.factor(0.8 * n), 1.0);
-        assert!((t.factor(0.9 * n) - 0.5).abs() < 1e-12);
+        assert_eq!(t.factor(0.5 * n), 1.0);
+        assert!((t.factor(0.75 * n) - 0.5).abs() < 1e-12);
         assert_eq!(t.factor(n), 0.0);
         assert_eq!(t.factor(2.0 * n), 0.0);
         let h = 1e-6 * n;
-        for edge in [0.8 * n, n] {
+        for edge in [0.5 * n, n] {
             let slope_in = (t.factor(edge) - t.factor(edge - h)) / h;
             let slope_out = (t.factor(edge + h) - t.factor(edge)) / h;
             assert!((slope_in - slope_out).abs() * n < 1e-4, "{edge}");
