@@ -147,10 +147,7 @@ fn defocus_strehl_ratio() {
         let strehl = psf(&s, 0.0) / clear;
         let want = ((PI * w).sin() / (PI * w)).powi(2);
         eprintln!("defocus Strehl W020 {w}: eoir {strehl:.4}, Mahajan {want:.4}");
-        assert!(
-            (strehl - want).abs() < 0.025,
-            "W020 {w}: {strehl} vs {want}"
-        );
+        assert!((strehl - want).abs() < 0.03, "W020 {w}: {strehl} vs {want}");
     }
     // The diffraction component is the only one on without defocus.
     assert_eq!(
