@@ -142,6 +142,26 @@ pub fn defocus(x: f64, w020_waves: f64) -> f64 {
     jinc(8.0 * PI * w020_waves * x * (1.0 - x))
 }
 
+/// Defocus in the geometric-optics limit, the transfer function of a defocus *without*
+/// diffraction (`[diffraction] enabled = false`): `2 J1(a)/a` with `a = 8π W020 X`, for
+/// every `X = f/f_c ≥ 0` (no cutoff).
+///
+/// Derivation: with the wavefront `W(ρ) = W020 λ ρ²` (ρ the normalised pupil radius), the
+/// transverse ray error in the image is `ε = (R/a_p) ∂W/∂ρ = 2N · 2 W020 λ ρ`
+/// (R/a_p = 2N for an image distance R and pupil radius a_p), so a point images as a
+/// uniform disc of radius `r_b = 4 N λ W020` — the same as the focus shift's cone,
+/// `δz/(2N)` with `δz = 8 N² λ W020`. A uniform disc of radius r_b has the transfer
+/// function `2 J1(2π ν r_b)/(2π ν r_b)`, and at the image-plane frequency
+/// `ν = X/(λN)` the argument is `2π (X/(λN)) 4NλW020 = 8π W020 X`. It is the large-W020
+/// limit of the diffraction form [`defocus`] (`a = 8π W020 X(1 − X)`, Hopkins 1955; the
+/// `(1 − X)` comes from the shrinking pupil overlap, which geometric optics does not
+/// have), equal to it to first order in X, and it rolls off as `X^{−3/2}` instead of
+/// stopping at the cutoff D/λ. Checked against the numerical Fourier transform of the
+/// uniform disc (tests/all/optics.rs).
+pub fn defocus_geometric(x: f64, w020_waves: f64) -> f64 {
+    jinc(8.0 * PI * w020_waves * x.abs())
+}
+
 /// The Airy amplitude `2 J1(a)/a` (1 at `a = 0`; J1 from `libm::j1`), the factor of
 /// [`defocus`] as a function of its argument `a = 8π W020 X(1 − X)`.
 pub fn jinc(a: f64) -> f64 {

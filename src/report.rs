@@ -298,6 +298,66 @@ pub struct RunFacts<'a> {
     pub execution: ExecutionReport,
 }
 
+/// Share of a frame's pixels (percent) above which a run warns that it saturates: 1 %.
+pub const SATURATION_WARNING_PERCENT: f64 = 1.0;
+
+/// The warning for a frame with more than [`SATURATION_WARNING_PERCENT`] of its pixels
+/// saturated (mean electrons at the full well, or DN at the ADC maximum), naming the
+/// remedy for each kind: at the ADC ceiling under auto gain, `detector.auto_gain.fraction`
+/// (the auto gain rescales K, so a shorter integration time changes nothing there); at
+/// the ADC ceiling with a fixed gain, `detector.gain_dn_per_e` or the integration time;
+/// at the full well, `detector.integration_time_s` (or the F-number), whatever the gain.
+/// `None` below the threshold.
+pub fn saturation_warning(
+    sensor: &Sensor,
+    electrons: &Array2<f32>,
+    dn: &Array2<u16>,
+) -> Option<String> {
+    let d = &sensor.detector;
+    let n = dn.len().max(1) as f64;
+    let (mut well, mut adc, mut any) = (0usize, 0usize, 0usize);
+    for (e, v) in electrons.iter().zip(dn.iter()) {
+        let at_well = *e as f64 >= d.full_well_e;
+        let at_adc = *v as f64 >= d.max_dn();
+        well += at_well as usize;
+        adc += at_adc as usize;
+        any += (at_well || at_adc) as usize;
+    }
+    let percent = 100.0 * any as f64 / n;
+    if percent <= SATURATION_WARNING_PERCENT {
+        return None;
+    }
+    let mut remedies = Vec::new();
+    if adc > 0 {
+        match &d.auto_gain {
+            Some(a) => remedies.push(format!(
+                "{:.2} % at the ADC maximum ({} DN): lower `detector.auto_gain.fraction` (now {}) or raise `detector.auto_gain.reference_temperature_k` — the auto gain rescales K, so a shorter integration time does not help there",
+                100.0 * adc as f64 / n,
+                d.max_dn(),
+                a.fraction
+            )),
+            None => remedies.push(format!(
+                "{:.2} % at the ADC maximum ({} DN): lower `detector.gain_dn_per_e` or shorten `detector.integration_time_s` (now {} s)",
+                100.0 * adc as f64 / n,
+                d.max_dn(),
+                d.integration_time_s
+            )),
+        }
+    }
+    if well > 0 {
+        remedies.push(format!(
+            "{:.2} % at the full well ({} e-): shorten `detector.integration_time_s` (now {} s) or raise `optics.f_number`",
+            100.0 * well as f64 / n,
+            d.full_well_e,
+            d.integration_time_s
+        ));
+    }
+    Some(format!(
+        "{percent:.2} % of the pixels are saturated (more than {SATURATION_WARNING_PERCENT} %): {}",
+        remedies.join("; ")
+    ))
+}
+
 impl RunReport {
     /// Assembles the report from what the stages returned. The signal statistics are
     /// measured on the first frame: a pixel counts as saturated when its mean electrons

@@ -12,20 +12,32 @@
 //!   `μ_y − μ_y.dark` over the pairs from dark up to 70 % of the saturation net signal.
 //! - **Responsivity** `R = Kη`: slope of `μ_y − μ_y.dark` against the photons μ_p over the
 //!   same range; quantum efficiency `η = R/K`.
-//! - **Temporal dark noise** `σ_d = √(σ_y.dark² − σ_q²)/K`, `σ_q² = 1/12 DN²` (integer
-//!   data), from the dark pair at the photon-transfer exposure time; flagged as
-//!   quantisation-limited when `σ_y.dark² < 0.24 DN²` (the standard's limit).
-//! - **SNR** per pair `(μ_y − μ_y.dark)/σ_y`; `SNR_max = √μ_e.sat`.
-//! - **Absolute sensitivity threshold**: the signal where SNR = 1 for
-//!   `SNR(μ_e) = μ_e/√(σ_d² + μ_e)`, i.e. `μ_e.min = ½ + √(σ_d² + ¼)` electrons;
-//!   **dynamic range** `DR = μ_e.sat/μ_e.min` (also in dB, 20 log₁₀).
+//! - **Temporal dark noise** `σ_y.dark² ← max(σ_y.dark², 0.24 DN²)` (Release 4.0: below
+//!   0.24 DN² the dark noise is quantisation-dominated and the limit is used instead; the
+//!   measured value is kept as `sigma_y_dark_measured_DN`), then
+//!   `σ_d = √(σ_y.dark² − σ_q²)/K`, `σ_q² = 1/12 DN²` (integer data), from the dark pair at
+//!   the photon-transfer exposure time.
+//! - **SNR** per pair `(μ_y − μ_y.dark)/σ_y`, and the model curve
+//!   `SNR(μ_p) = ημ_p/√(σ_d² + σ_q²/K² + ημ_p)` (`= μ_e/√(σ_y.dark²/K² + μ_e)`);
+//!   `SNR_max = √μ_e.sat`.
+//! - **Absolute sensitivity threshold** (Release 4.0): `μ_e.min = σ_y.dark/K + ½`
+//!   electrons (with the floored σ_y.dark), `μ_p.min = μ_e.min/η`; **dynamic range**
+//!   `DR = μ_e.sat/μ_e.min` (also in dB, 20 log₁₀). These are the formulas of the
+//!   `emva1288` reference package (`Results1288.u_e_min`, `.DR`).
+//! - **Uncertainties**: the standard uncertainty of every figure, propagated from the
+//!   fits' and the pair statistics' own (`super::uncertainty`).
+//! - **Clipped darks**: a warning when dark frames have pixels at 0 DN or at the ADC
+//!   maximum (the ADC clips them and the dark statistics are biased).
 //! - **Linearity error**: a line fitted to `μ_y − μ_y.dark` against μ_p (or the exposure
 //!   time when no photon counts are given and it varies) between 5 % and 95 % of the
 //!   saturation net signal; `LE = (max δ − min δ)/2` with `δ` the relative deviation from
 //!   the line, in percent.
 //! - **Dark current** from the dark pairs at two or more exposure times: slope of `μ_y.dark`
 //!   against t divided by K (e⁻/s), and from the variance, slope of `σ_y.dark²` against t
-//!   divided by K² (the two agree when the dark signal is Poisson).
+//!   divided by K² (the two agree when the dark signal is Poisson). The dark pairs come
+//!   from the descriptor and, when it exists, from `dark_current.txt` beside it (the same
+//!   format, dark series only): the reference package reads a descriptor only when every
+//!   exposure time has bright images too, so a set keeps its dark-current series apart.
 //! - **Spatial stacks** (more than two frames) of L frames: per-pixel averages, spatial
 //!   variance with the surviving temporal part removed, `s² = var(⟨y⟩_L) − σ_y²/L`
 //!   ([`spatial_statistics`]). `DSNU₁₂₈₈ = s_y.dark/K` electrons,
@@ -52,10 +64,15 @@ use crate::io::raster;
 use crate::processing::fit_line;
 use crate::processing::photon_transfer::{pair_statistics, spatial_statistics, FramePair};
 
+use super::uncertainty::{figures, propagate, slope_standard_error, Measured};
+
 /// Upper end of the K and R fit range, fraction of the saturation net signal.
 pub const FIT_FRACTION: f64 = 0.7;
-/// Quantisation noise variance of integer data, DN² (q = 1).
-pub const QUANTISATION_VARIANCE_DN2: f64 = 1.0 / 12.0;
+pub use super::uncertainty::{QUANTISATION_LIMIT_DN2, QUANTISATION_VARIANCE_DN2};
+
+/// The file beside a descriptor that holds the dark-current series (dark pairs at several
+/// exposure times), if the set has one.
+pub const DARK_CURRENT_FILE: &str = "dark_current.txt";
 
 /// Statistics of one temporal pair.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -100,8 +117,11 @@ pub struct Characterization {
     pub responsivity_DN_per_photon: Option<f64>,
     /// Temporal dark noise σ_d, electrons.
     pub sigma_d_e: f64,
-    /// Temporal dark noise σ_y.dark, DN (quantisation included).
+    /// Temporal dark noise σ_y.dark, DN (quantisation included; at least √0.24 DN, the
+    /// Release 4.0 limit).
     pub sigma_y_dark_DN: f64,
+    /// σ_y.dark as measured, before the 0.24 DN² limit, DN.
+    pub sigma_y_dark_measured_DN: f64,
     /// Whether σ_y.dark² < 0.24 DN² (σ_d is then an upper limit).
     pub sigma_d_quantisation_limited: bool,
     /// DSNU₁₂₈₈, electrons.
@@ -155,6 +175,11 @@ pub struct Characterization {
     /// datasheet's PRNU histogram; not written to the JSON).
     #[serde(skip)]
     pub bright_mean_map_dn: Vec<f64>,
+    /// Standard uncertainty (1σ, statistical) of each figure, by field name
+    /// (`super::uncertainty`).
+    pub uncertainties: BTreeMap<String, f64>,
+    /// Things the analysis found questionable (e.g. clipped dark frames).
+    pub warnings: Vec<String>,
 }
 
 /// Reads one image of the set as f64, checking size and bit depth.
@@ -287,11 +312,27 @@ pub fn characterize(path: &Path) -> Result<Characterization> {
         ],
         1,
     )?;
+    let dark_current = dark_current_descriptor(path, &d)?;
     let temporal_dark: Vec<&Series> = d
         .series
         .iter()
         .filter(|s| s.is_temporal() && s.is_dark())
         .collect();
+    // Dark pairs of the dark-current file at exposure times the descriptor lacks.
+    let extra_dark: Vec<&Series> = dark_current
+        .as_ref()
+        .map(|dc| {
+            dc.series
+                .iter()
+                .filter(|s| s.is_temporal() && s.is_dark())
+                .filter(|s| {
+                    !temporal_dark
+                        .iter()
+                        .any(|t| t.exposure_ns.to_bits() == s.exposure_ns.to_bits())
+                })
+                .collect()
+        })
+        .unwrap_or_default();
     let temporal_bright: Vec<&Series> = d
         .series
         .iter()
@@ -358,8 +399,21 @@ pub fn characterize(path: &Path) -> Result<Characterization> {
     // Dark pairs.
     let mut darks: Vec<PairLevel> = Vec::new();
     let mut dark_stats: BTreeMap<u64, (f64, f64)> = BTreeMap::new();
-    for s in &temporal_dark {
-        let st = load_series(path, &d, s, &valid)?;
+    let (mut dark_clipped, mut dark_values) = (0usize, 0usize);
+    let max_value = if d.bits >= 16 {
+        f64::from(u16::MAX)
+    } else {
+        f64::from((1u32 << d.bits) - 1)
+    };
+    let dc_path = dark_current_path(path);
+    for (s, file) in temporal_dark
+        .iter()
+        .map(|s| (*s, path))
+        .chain(extra_dark.iter().map(|s| (*s, dc_path.as_path())))
+    {
+        let st = load_series(file, &d, s, &valid)?;
+        dark_clipped += st.iter().filter(|v| **v <= 0.0 || **v >= max_value).count();
+        dark_values += st.len();
         let (m, v) = pair_stats(st.view())?;
         dark_stats.insert(key(s.exposure_ns), (m, v));
         darks.push(PairLevel {
@@ -453,8 +507,8 @@ pub fn characterize(path: &Path) -> Result<Characterization> {
             f64::from_bits(best)
         }
     };
-    let (dark_var, sigma_y_dark) = match dark_stats.get(&key(ptc_exposure_ns)) {
-        Some(&(_, v)) => (v, v.sqrt()),
+    let (dark_var, sigma_y_dark_measured) = match dark_stats.get(&key(ptc_exposure_ns)) {
+        Some(&(_, v)) => (v, v.max(0.0).sqrt()),
         None => {
             return Err(too_few(
                 &format!("no dark pair at the photon-transfer exposure time {ptc_exposure_ns} ns"),
@@ -462,11 +516,6 @@ pub fn characterize(path: &Path) -> Result<Characterization> {
             ))
         }
     };
-    let sigma_d_e = (dark_var - QUANTISATION_VARIANCE_DN2).max(0.0).sqrt() / k;
-    let u_e_sat = u_y_sat / k;
-    let u_e_min = 0.5 + (sigma_d_e * sigma_d_e + 0.25).sqrt();
-    let snr_max = u_e_sat.max(0.0).sqrt();
-    let dr = u_e_sat / u_e_min;
 
     // Linearity.
     let exposures_vary = levels
@@ -486,18 +535,41 @@ pub fn characterize(path: &Path) -> Result<Characterization> {
         .filter(|l| l.net_mean_dn >= 0.05 * u_y_sat && l.net_mean_dn <= 0.95 * u_y_sat)
         .filter_map(|l| abscissa(l).map(|x| (x, l.net_mean_dn)))
         .collect();
-    let linearity = fit_line(&lin_pts).map(|(a, b)| {
-        let devs: Vec<f64> = lin_pts
+    // The uncertainty of a deviation δ_i is its net mean's, 100·u(μ_y − μ_y.dark)/(ax + b)
+    // with u² = (σ²_y + σ²_y.dark)/(2N); LE's is half the quadrature sum of those of the
+    // largest and smallest deviation.
+    let n_px = valid.len() as f64;
+    let lin_u: Vec<f64> = levels
+        .iter()
+        .filter(|l| l.net_mean_dn >= 0.05 * u_y_sat && l.net_mean_dn <= 0.95 * u_y_sat)
+        .filter(|l| abscissa(l).is_some())
+        .map(|l| ((l.variance_dn2 + (l.variance_dn2 - l.net_variance_dn2)) / (2.0 * n_px)).sqrt())
+        .collect();
+    let linearity_fit = fit_line(&lin_pts).map(|(a, b)| {
+        let devs: Vec<(f64, f64)> = lin_pts
             .iter()
-            .map(|&(x, y)| 100.0 * (y - (a * x + b)) / (a * x + b))
+            .zip(&lin_u)
+            .map(|(&(x, y), u)| {
+                let line = a * x + b;
+                (100.0 * (y - line) / line, 100.0 * u / line.abs())
+            })
             .collect();
-        let hi = devs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let lo = devs.iter().copied().fold(f64::INFINITY, f64::min);
-        0.5 * (hi - lo)
+        let hi = devs.iter().copied().fold(
+            (f64::NEG_INFINITY, 0.0),
+            |m, d| if d.0 > m.0 { d } else { m },
+        );
+        let lo = devs
+            .iter()
+            .copied()
+            .fold((f64::INFINITY, 0.0), |m, d| if d.0 < m.0 { d } else { m });
+        (0.5 * (hi.0 - lo.0), 0.5 * hi.1.hypot(lo.1))
     });
+    let linearity = linearity_fit.map(|l| l.0);
 
     // Dark current.
-    let (dc_mean, dc_var) = if darks.len() >= 2 {
+    // (points, slope, intercept) of the two dark-current fits.
+    type Fit = (Vec<(f64, f64)>, f64, f64);
+    let (dc_mean_fit, dc_var_fit): (Option<Fit>, Option<Fit>) = if darks.len() >= 2 {
         let m: Vec<(f64, f64)> = darks
             .iter()
             .map(|l| (l.exposure_ns * 1e-9, l.mean_dn))
@@ -507,12 +579,14 @@ pub fn characterize(path: &Path) -> Result<Characterization> {
             .map(|l| (l.exposure_ns * 1e-9, l.variance_dn2))
             .collect();
         (
-            fit_line(&m).map(|(s, _)| s / k),
-            fit_line(&v).map(|(s, _)| s / (k * k)),
+            fit_line(&m).map(|(s, b)| (m, s, b)),
+            fit_line(&v).map(|(s, b)| (v, s, b)),
         )
     } else {
         (None, None)
     };
+    let dc_mean = dc_mean_fit.as_ref().map(|f| f.1 / k);
+    let dc_var = dc_var_fit.as_ref().map(|f| f.1 / (k * k));
 
     // Spatial non-uniformity.
     let (dark_stack, bright_stack) = match (spatial_dark, spatial_bright) {
@@ -540,13 +614,85 @@ pub fn characterize(path: &Path) -> Result<Characterization> {
     };
     let (dark_mean_s, dark_s2) = spatial_statistics(dark_stack.view())?;
     let (bright_mean_s, bright_s2) = spatial_statistics(bright_stack.view())?;
-    let dsnu_dn = dark_s2.max(0.0).sqrt();
     let net = bright_mean_s - dark_mean_s;
-    let prnu = if net > 0.0 {
-        100.0 * (bright_s2 - dark_s2).max(0.0).sqrt() / net
-    } else {
-        f64::NAN
+
+    // The figures and their uncertainties (super::uncertainty), from the measured
+    // quantities.
+    let n = valid.len() as f64;
+    let measured = Measured {
+        k,
+        r: responsivity.unwrap_or(f64::NAN),
+        y_sat: u_y_sat,
+        dark_var,
+        s2_dark: dark_s2,
+        s2_bright: bright_s2,
+        net_spatial: if net > 0.0 { net } else { f64::NAN },
     };
+    let r_pts: Vec<(f64, f64)> = levels
+        .iter()
+        .filter(|l| l.in_fit)
+        .filter_map(|l| l.photons_per_pixel.map(|p| (p, l.net_mean_dn)))
+        .collect();
+    let sat_var = levels[sat].variance_dn2;
+    let u_measured = Measured {
+        k: slope_standard_error(&ptc, k, intercept).unwrap_or(f64::NAN),
+        r: match (responsivity, fit_line(&r_pts)) {
+            (Some(_), Some((r, b))) => slope_standard_error(&r_pts, r, b).unwrap_or(f64::NAN),
+            _ => f64::NAN,
+        },
+        y_sat: ((sat_var + dark_var) / (2.0 * n)).sqrt(),
+        dark_var: dark_var * (2.0 / n).sqrt(),
+        s2_dark: dark_s2.abs() * (2.0 / (n - 1.0)).sqrt(),
+        s2_bright: bright_s2.abs() * (2.0 / (n - 1.0)).sqrt(),
+        net_spatial: ((dark_s2.abs() + bright_s2.abs()) / n).sqrt(),
+    };
+    let fig = figures(&measured);
+    let mut uncertainties: BTreeMap<String, f64> = propagate(&measured, &u_measured)
+        .into_iter()
+        .filter(|(_, v)| v.is_finite())
+        .map(|(k, v)| (k.to_string(), v))
+        .collect();
+    let sigma_d_e = fig["sigma_d_e"];
+    let u_e_sat = fig["u_e_sat_e"];
+    let u_e_min = fig["u_e_min_e"];
+    let snr_max = fig["SNR_max"];
+    let dr = fig["DR"];
+    let dsnu_dn = fig["DSNU1288_DN"];
+    let prnu = fig["PRNU1288_percent"];
+    let sigma_y_dark_floored = fig["sigma_y_dark_DN"];
+    if let (Some(m), Some(v)) = (dc_mean_fit.as_ref(), dc_mean) {
+        if let Some(se) = slope_standard_error(&m.0, m.1, m.2) {
+            uncertainties.insert(
+                "dark_current_mean_e_per_s".to_string(),
+                // v = s/K: u² = (u_s/K)² + (v·u_K/K)².
+                (se / k).hypot(v * u_measured.k / k),
+            );
+        }
+    }
+    if let (Some(m), Some(v)) = (dc_var_fit.as_ref(), dc_var) {
+        if let Some(se) = slope_standard_error(&m.0, m.1, m.2) {
+            uncertainties.insert(
+                "dark_current_variance_e_per_s".to_string(),
+                // v = s/K²: u² = (u_s/K²)² + (2v·u_K/K)².
+                (se / (k * k)).hypot(2.0 * v * u_measured.k / k),
+            );
+        }
+    }
+    if let Some((_, u)) = linearity_fit {
+        uncertainties.insert("linearity_error_percent".to_string(), u);
+    }
+    let mut warnings = Vec::new();
+    if dark_clipped > 0 {
+        warnings.push(format!(
+            "{:.3} % of the dark pixel values are at 0 DN or at the ADC maximum ({max_value} DN): the ADC clips the dark signal, so σ_y.dark, the DSNU and the dark current are biased; raise the black level (offset) so the darks sit clear of 0 DN",
+            100.0 * dark_clipped as f64 / dark_values.max(1) as f64
+        ));
+    }
+    if dark_var < QUANTISATION_LIMIT_DN2 {
+        warnings.push(format!(
+            "σ_y.dark² = {dark_var:.4} DN² is below the 0.24 DN² limit: the dark noise is quantisation-limited; σ_y.dark = √0.24 DN is used (EMVA 1288 Release 4.0), so σ_d, μ_e.min and the dynamic range are limits"
+        ));
+    }
 
     Ok(Characterization {
         image_size: [d.width, d.height],
@@ -558,8 +704,9 @@ pub fn characterize(path: &Path) -> Result<Characterization> {
         QE_percent: qe.map(|q| 100.0 * q),
         responsivity_DN_per_photon: responsivity,
         sigma_d_e,
-        sigma_y_dark_DN: sigma_y_dark,
-        sigma_d_quantisation_limited: dark_var < 0.24,
+        sigma_y_dark_DN: sigma_y_dark_floored,
+        sigma_y_dark_measured_DN: sigma_y_dark_measured,
+        sigma_d_quantisation_limited: dark_var < QUANTISATION_LIMIT_DN2,
         DSNU1288_e: dsnu_dn / k,
         DSNU1288_DN: dsnu_dn,
         PRNU1288_percent: prnu,
@@ -586,6 +733,8 @@ pub fn characterize(path: &Path) -> Result<Characterization> {
         ],
         dark_mean_map_dn: pixel_means(&dark_stack),
         bright_mean_map_dn: pixel_means(&bright_stack),
+        uncertainties,
+        warnings,
     })
 }
 
@@ -594,6 +743,43 @@ fn pixel_means(stack: &Array3<f64>) -> Vec<f64> {
     stack
         .mean_axis(ndarray::Axis(0))
         .map_or_else(Vec::new, |m| m.iter().copied().collect())
+}
+
+/// The dark-current file beside a descriptor ([`DARK_CURRENT_FILE`]).
+pub fn dark_current_path(descriptor: &Path) -> PathBuf {
+    descriptor
+        .parent()
+        .unwrap_or(Path::new("."))
+        .join(DARK_CURRENT_FILE)
+}
+
+/// The dark-current series beside `path`, if the file exists: parsed and checked like a
+/// descriptor, with dark series only and the same image format as `d`.
+fn dark_current_descriptor(path: &Path, d: &Descriptor) -> Result<Option<Descriptor>> {
+    let p = dark_current_path(path);
+    if !p.exists() {
+        return Ok(None);
+    }
+    let dc = Descriptor::read(&p)?;
+    if (dc.bits, dc.width, dc.height) != (d.bits, d.width, d.height) {
+        return Err(Error::format(
+            &p,
+            format!(
+                "`n {} {} {}` differs from the descriptor's `n {} {} {}`",
+                dc.bits, dc.width, dc.height, d.bits, d.width, d.height
+            ),
+        ));
+    }
+    if let Some(s) = dc.series.iter().find(|s| !s.is_dark()) {
+        return Err(Error::format(
+            &p,
+            format!(
+                "line {}: a bright series; the dark-current file holds dark series (`d`) only",
+                s.line
+            ),
+        ));
+    }
+    Ok(Some(dc))
 }
 
 /// The net signal of the level computed from series `s` (matched by exposure and photons).

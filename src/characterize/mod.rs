@@ -6,6 +6,7 @@ pub mod analysis;
 pub mod datasheet;
 pub mod descriptor;
 pub mod simulate;
+pub mod uncertainty;
 
 pub use analysis::{characterize, descriptor_path, Characterization, PairLevel};
 pub use datasheet::write_outputs;

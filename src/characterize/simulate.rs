@@ -22,7 +22,10 @@
 //! - photon transfer: [`LEVELS_LINEAR`] levels evenly spaced from 0 to 90 % of the
 //!   saturation photon count and [`LEVELS_NEAR_SATURATION`] from 91 % to 130 %, two
 //!   frames each, with one dark pair at t;
-//! - dark current: dark pairs at t/4, t/2, 2t and 4t too;
+//! - dark current: dark pairs at t/4, t/2, 2t and 4t too, listed in `dark_current.txt`
+//!   beside `descriptor.txt` (which holds one exposure time only, with its darks, so that
+//!   the `emva1288` reference package reads it as written: its loader needs bright images
+//!   at every exposure time of a descriptor);
 //! - spatial stacks: [`STACK_FRAMES`] dark frames and as many bright frames at 50 % of
 //!   the saturation photon count.
 //!
@@ -270,7 +273,8 @@ pub fn simulate(sensor: &SensorConfig, dir: &Path, options: &SimulateOptions) ->
             });
             Ok(())
         };
-        // Dark current series (and the photon-transfer dark at t).
+        // Dark current series (and the photon-transfer dark at t): the pairs at other
+        // exposure times go to dark_current.txt.
         for (i, f) in DARK_TIME_FACTORS.iter().enumerate() {
             let ti = t * f;
             let inst = if *f == 1.0 {
@@ -325,16 +329,25 @@ pub fn simulate(sensor: &SensorConfig, dir: &Path, options: &SimulateOptions) ->
             STACK_FRAMES,
         )?;
 
-        let descriptor = Descriptor {
-            version: "3.0".to_string(),
-            bits: d.bits.min(16),
-            width: win.0,
-            height: win.1,
-            series,
-        };
-        let text = descriptor.to_text();
-        let dpath = tmp.join("descriptor.txt");
-        atomic_write(&dpath, |w| write_all(w, text.as_bytes(), &dpath))?;
+        let t_ptc = round_ns(t_ns).to_bits();
+        let (main, dark_current): (Vec<Series>, Vec<Series>) = series
+            .into_iter()
+            .partition(|s| s.exposure_ns.to_bits() == t_ptc);
+        for (name, series) in [
+            ("descriptor.txt", main),
+            (super::analysis::DARK_CURRENT_FILE, dark_current),
+        ] {
+            let descriptor = Descriptor {
+                version: "3.0".to_string(),
+                bits: d.bits.min(16),
+                width: win.0,
+                height: win.1,
+                series,
+            };
+            let text = descriptor.to_text();
+            let dpath = tmp.join(name);
+            atomic_write(&dpath, |w| write_all(w, text.as_bytes(), &dpath))?;
+        }
         let truth = Truth {
             sensor: config.name.clone(),
             seed: options.seed,

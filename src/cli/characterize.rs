@@ -76,6 +76,9 @@ pub fn characterize(args: CharacterizeArgs) -> Result<()> {
     let descriptor = characterize::descriptor_path(set);
     let c = characterize::characterize(&descriptor)
         .with_context(|| format!("characterising {}", descriptor.display()))?;
+    for w in &c.warnings {
+        eprintln!("warning: {w}");
+    }
     let title = set.display().to_string();
     characterize::write_outputs(&c, &args.output, &title)
         .with_context(|| format!("writing the characterisation to {}", args.output.display()))?;

@@ -24,8 +24,9 @@ pub struct SceneArgs {
     #[command(flatten)]
     sensor: SensorArgs,
     /// Scene samples per detector pixel, an integer k: the cube is k times the detector plus
-    /// margin along each axis [default: 2; 1 with explicit --rows/--cols/--fov-deg, where
-    /// the cube is rows·k × cols·k].
+    /// margin along each axis [default: the smallest k whose Nyquist frequency reaches the
+    /// optics' cutoff D/λ at the shortest wavelength, between 2 and 4; 1 with explicit
+    /// --rows/--cols/--fov-deg, where the cube is rows·k × cols·k].
     #[arg(long)]
     oversampling: Option<usize>,
     /// Detector pixels of scene beyond each edge of the sensor's field of view.
@@ -108,6 +109,15 @@ fn wavelengths(sensor: &Sensor, args: &SceneArgs) -> Result<Vec<f64>> {
 pub fn scene(args: SceneArgs) -> Result<()> {
     let sensor = args.sensor.load()?;
     let grid = detector_grid(&sensor);
+    let wavelength_um = wavelengths(&sensor, &args)?;
+    // The optics' cutoff at the shortest wavelength, if an aperture term bounds it.
+    let cutoff = wavelength_um
+        .first()
+        .and_then(|l| eoir::imaging::scene_band::optical_cutoff_cy_per_rad(sensor.otf(), *l))
+        .filter(|c| c.is_finite());
+    let oversampling = args
+        .oversampling
+        .unwrap_or_else(|| sizing::default_oversampling(grid.ifov_rad, cutoff));
     let sized = match (args.rows, args.cols, args.fov_deg) {
         (Some(rows), Some(cols), Some(fov_x_deg)) => SceneParams {
             rows,
@@ -116,16 +126,12 @@ pub fn scene(args: SceneArgs) -> Result<()> {
             fov_x_deg,
             ..SceneParams::default()
         },
-        (None, None, None) => sizing::covering(
-            &grid,
-            args.oversampling.unwrap_or(sizing::DEFAULT_OVERSAMPLING),
-            args.margin_px,
-        )
+        (None, None, None) => sizing::covering(&grid, oversampling, args.margin_px)
             .with_context(|| format!("sizing the scene to sensor `{}`", sensor.name))?,
         _ => bail!("--rows, --cols and --fov-deg go together (or give none to size the scene to the sensor)"),
     };
     let params = SceneParams {
-        wavelength_um: wavelengths(&sensor, &args)?,
+        wavelength_um,
         range_m: args.range_m,
         seed: args.seed,
         sun: !args.night,
@@ -161,6 +167,16 @@ pub fn scene(args: SceneArgs) -> Result<()> {
         w[w.len() - 1],
     );
     let (sx, sy) = grid.fov_deg();
+    if let Some(k) = cutoff.and_then(|c| sizing::oversampling_for_cutoff(grid.ifov_rad, c)) {
+        if args.fov_deg.is_none() && params.oversampling < k {
+            println!(
+                "  note: the optics pass up to {:.3} cy/mrad; {} scene samples per pixel hold up to {:.3} (`eoir run` tapers the transfer function there); --oversampling {k} holds it all",
+                cutoff.unwrap_or(0.0) * 1e-3,
+                params.oversampling,
+                params.oversampling as f64 / (2.0 * grid.ifov_rad) * 1e-3,
+            );
+        }
+    }
     if args.fov_deg.is_none() {
         println!(
             "  sized for `{}`: {} x {} px ({sx:.4} x {sy:.4}°) plus {} px each side, {} scene samples per pixel",

@@ -65,6 +65,11 @@ pub struct DetectorConfig {
     /// Photosensitive height along y, m (defaults to `active_width_m`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub active_height_m: Option<f64>,
+    /// Include the detector footprint transfer function `sinc(f·w/F)` in the cascade
+    /// (`false`: pixels sample the image at their centres, e.g. for the unblurred
+    /// reference of a run).
+    #[serde(default = "footprint_on", skip_serializing_if = "is_footprint_on")]
+    pub footprint_enabled: bool,
     /// Integration (exposure) time, s.
     pub integration_time_s: f64,
     /// Quantum efficiency η(λ), electrons per photon.
@@ -111,6 +116,14 @@ pub struct DetectorConfig {
     /// [`AutoGainConfig`]); excludes `gain_dn_per_e`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub auto_gain: Option<AutoGainConfig>,
+}
+
+fn footprint_on() -> bool {
+    true
+}
+
+fn is_footprint_on(v: &bool) -> bool {
+    *v
 }
 
 fn default_full_well() -> f64 {

@@ -31,6 +31,8 @@ mod padding;
 mod r2c;
 mod sampling;
 use sampling::shift_phase;
+pub mod scene_band;
+use scene_band::GridTaper;
 mod transpose;
 mod workspace;
 pub use workspace::ColumnWorkspace;
@@ -289,6 +291,9 @@ pub struct Imager {
     /// The chunks' OTF profiles, kept between the frames of a sequence when asked
     /// ([`Imager::keep_chunk_profiles`]).
     profiles: ProfileCache,
+    /// The radial taper of the OTF at the scene grid's Nyquist circle, when the optics
+    /// pass more than the grid holds ([`scene_band`]); part of the achromatic product.
+    taper: Option<GridTaper>,
 }
 
 /// A chunk's row spectra larger than this are written with non-temporal stores
@@ -374,13 +379,30 @@ impl Imager {
                 (lo.min(*l), hi.max(*l))
             });
         let (lo, hi) = if lo <= hi { (lo, hi) } else { (1.0, 1.0) };
+        let taper = scene_band::grid_taper(&otf, (dy, dx), lo);
+        if let (Some(t), Some(cutoff)) = (&taper, scene_band::optical_cutoff_cy_per_rad(&otf, lo)) {
+            sampling.warnings.push(scene_band::coarse_scene_warning(
+                t,
+                cutoff,
+                sensor.ifov_rad(),
+                (dy, dx),
+            ));
+        }
         // The frequency samples and the chromatic tables are independent; both are
         // parallel loops with serial stretches between them (the tables' refinement
         // levels, the sampler's per-axis factors), which the other fills.
         let (radial, tables) = rayon::join(
             || {
                 let sampler = otf.achromatic_sampler(&grid);
-                RadialGrid::from_columns(&grid, |u, c| sampler.column(u, c))
+                RadialGrid::from_columns(&grid, |u, c| {
+                    sampler.column(u, c);
+                    if let Some(t) = &taper {
+                        let fx = grid.fx[u];
+                        for (a, fy) in c.iter_mut().zip(&grid.fy) {
+                            *a *= t.factor(fx.hypot(*fy));
+                        }
+                    }
+                })
             },
             || RadialTables::covering(&otf, lo, hi, grid.rho_max()),
         );
@@ -398,6 +420,7 @@ impl Imager {
             radial,
             frames: FramePool::default(),
             profiles: ProfileCache::new(active.len().div_ceil(BANDS_PER_CHUNK)),
+            taper,
         })
     }
 
@@ -427,6 +450,13 @@ impl Imager {
     /// The system transfer function in use.
     pub fn otf(&self) -> &SystemOtf {
         &self.otf
+    }
+
+    /// The radial taper the engine applies to the system OTF because the scene grid's
+    /// Nyquist frequency is below the optical cutoff ([`scene_band`]), if any: the OTF
+    /// the accumulation applies is [`SystemOtf::evaluate`] × [`GridTaper::factor`]`(ρ)`.
+    pub fn grid_taper(&self) -> Option<&GridTaper> {
+        self.taper.as_ref()
     }
 
     /// Selects the precision of the forward transforms (default [`FftPrecision::F32`]).

@@ -7,6 +7,7 @@
 //! |---|---|---|
 //! | diffraction × aberration (× defocus given in waves) | `X = ρλ/D` | [`RadialTables::aperture`], 0 beyond X = 1 |
 //! | defocus given as a focus shift | `a = 8π W020(λ) X(1 − X)` | `2J1(a)/a` |
+//! | defocus without diffraction or aberration (geometric blur disc) | `a = 8π W020(λ) X` | `2J1(a)/a`, no cutoff; direct beyond the table |
 //! | turbulence | `u = λρ/r0(λ)` | `exp(−3.44 u^{5/3})` |
 //! | aerosol | `v = ρλ/a` | constant beyond v = 1 |
 //!
@@ -181,6 +182,9 @@ pub struct RadialTables {
     pub aerosol: Option<Table1d>,
     /// Aperture diameter D, m (from the cutoff).
     aperture_diameter_m: f64,
+    /// Whether the defocus table's argument is `8π W020 X(1 − X)`, 0 beyond X = 1 (an
+    /// aperture term is on), or the geometric `8π W020 X` without a cutoff.
+    defocus_bounded: bool,
 }
 
 impl RadialTables {
@@ -212,7 +216,11 @@ impl RadialTables {
         let lambda_ref_um = max_wavelength_um;
         let fc_ref = otf.cutoff_cy_per_rad(lambda_ref_um);
         let aperture_diameter_m = fc_ref * lambda_ref_um * 1e-6;
-        let defocus_chromatic = otf.defocus_is_chromatic();
+        // Defocus gets its own table in its argument `a` when it depends on wavelength
+        // (a focus shift) or when no aperture term bounds it (the geometric blur disc,
+        // `a = 8π W020 X` without a cutoff).
+        let defocus_bounded = otf.defocus_bounded();
+        let defocus_chromatic = otf.defocus_is_chromatic() || !defocus_bounded;
         let mut aperture_parts: Vec<Component> = [
             Component::Diffraction,
             Component::Aberration,
@@ -224,9 +232,9 @@ impl RadialTables {
         if defocus_chromatic {
             aperture_parts.retain(|c| *c != Component::Defocus);
         }
-        let aperture = (!aperture_parts.is_empty()
-            || (defocus_chromatic && on(Component::Defocus)))
-        .then(|| {
+        // An aperture table (0 beyond X = 1) only with an aperture term; defocus without
+        // one is the geometric blur disc, which has no cutoff.
+        let aperture = (!aperture_parts.is_empty()).then(|| {
             Table1d::build(
                 |x| {
                     aperture_parts
@@ -252,7 +260,21 @@ impl RadialTables {
                         .unwrap_or(0.0)
                         .abs(),
                 );
-            let a_end = (2.0 * std::f64::consts::PI * w).max(1e-3);
+            // Bounded: a = 8π W020 X(1 − X) ≤ 2π W020. Geometric: a = 8π W020 X up to the
+            // largest X of the frequencies covered (X = ρλ/D, at most 4 when no largest
+            // frequency is given); beyond the table `chromatic_at` evaluates 2J1(a)/a
+            // directly.
+            let a_end = if defocus_bounded {
+                2.0 * std::f64::consts::PI * w
+            } else {
+                let x_max = if rho_max.is_finite() {
+                    rho_max / otf.cutoff_cy_per_rad(max_wavelength_um)
+                } else {
+                    4.0
+                };
+                8.0 * std::f64::consts::PI * w * x_max * (1.0 + 1e-9)
+            }
+            .max(1e-3);
             Table1d::build(
                 optics::jinc,
                 a_end,
@@ -303,6 +325,7 @@ impl RadialTables {
             turbulence_floor_u,
             aerosol,
             aperture_diameter_m,
+            defocus_bounded,
         }
     }
 
@@ -325,7 +348,14 @@ impl RadialTables {
             v *= t.eval(x);
         }
         if let Some(t) = &self.defocus {
-            v *= if x <= 1.0 {
+            v *= if !self.defocus_bounded {
+                let a = (8.0 * std::f64::consts::PI * w020 * x).abs();
+                if a <= t.end {
+                    t.eval(a)
+                } else {
+                    optics::jinc(a)
+                }
+            } else if x <= 1.0 {
                 t.eval((8.0 * std::f64::consts::PI * w020 * x * (1.0 - x)).abs())
             } else {
                 0.0
@@ -437,7 +467,7 @@ impl RadialTables {
     fn band_end(&self, wavelength_um: f64, r0_m: Option<f64>, rho_max: f64) -> f64 {
         let lambda_m = wavelength_um * 1e-6;
         let mut end = rho_max;
-        if self.aperture.is_some() || self.defocus.is_some() {
+        if self.aperture.is_some() || (self.defocus.is_some() && self.defocus_bounded) {
             end = end.min(self.aperture_diameter_m / lambda_m);
         }
         if let (Some(_), Some(r0)) = (&self.turbulence, r0_m) {

@@ -17,6 +17,13 @@ use crate::error::{require_non_negative, require_positive, Error, Result};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MotionConfig {
+    /// Include this component (`false` keeps the section but leaves it out: no smear in
+    /// the cascade and no drift over a sequence, e.g. for the unblurred reference of a run).
+    #[serde(
+        default = "crate::sensor::config::yes",
+        skip_serializing_if = "crate::sensor::config::is_true"
+    )]
+    pub enabled: bool,
     /// Angular smear length during one integration, rad.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub smear_rad: Option<f64>,

@@ -338,6 +338,12 @@ pub fn run(
         execution: done.execution,
     });
     report.input.units_source = reader.units_source();
+    if let Some(w) =
+        crate::report::saturation_warning(sensor, &frames[0].electrons_mean, &frames[0].dn)
+    {
+        report.warnings.push(w.clone());
+        warnings.push(w);
+    }
     Ok(RunOutput {
         frames,
         sensor: sensor.clone(),

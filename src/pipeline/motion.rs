@@ -116,7 +116,7 @@ impl SequenceMotion {
         let span = Clock::new(clock_cfg, d.integration_time_s, d.rows, whole)?.span_s();
         let los = LineOfSight::new(
             config.trajectory.as_ref(),
-            config.motion.as_ref(),
+            config.motion.as_ref().filter(|m| m.enabled),
             d.integration_time_s,
             seed,
             span,
@@ -125,7 +125,7 @@ impl SequenceMotion {
         if los.is_still() {
             return Ok(None);
         }
-        let drift_rate_rad_s = match (&config.motion, rendered) {
+        let drift_rate_rad_s = match (config.motion.as_ref().filter(|m| m.enabled), rendered) {
             (Some(m), true) => m.rate_rad_s(d.integration_time_s)?,
             _ => [0.0; 2],
         };

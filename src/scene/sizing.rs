@@ -31,10 +31,16 @@
 use super::synthetic::SceneParams;
 use crate::error::{Error, Result};
 
-/// Scene samples per detector pixel when none is given: 2 (the demo's), enough for the
-/// detector footprint and the optics' transfer function to act on a finer grid than the
-/// detector samples.
+/// Fewest scene samples per detector pixel when none is given: 2 (the demo's), enough for
+/// the detector footprint and the optics' transfer function to act on a finer grid than
+/// the detector samples. [`default_oversampling`] asks more when the optics pass more.
 pub const DEFAULT_OVERSAMPLING: usize = 2;
+
+/// Most scene samples per detector pixel [`default_oversampling`] picks: 4 (16× the
+/// detector's samples per band). Beyond it the engine's taper at the scene's Nyquist
+/// (`imaging::scene_band`) handles the rest of the optical band, with a warning; a user
+/// who wants the whole band asks for more with `--oversampling`.
+pub const MAX_DEFAULT_OVERSAMPLING: usize = 4;
 
 /// Detector pixels of scene beyond each edge of the detector when none is given.
 pub const DEFAULT_MARGIN_PX: usize = 4;
@@ -54,6 +60,25 @@ pub const MIN_BANDS: usize = 24;
 /// engine integrates the response exactly between samples (product integration), so the
 /// spacing only has to follow the scene spectrum, which is smooth for the built-in scenes.
 pub const MAX_GRID_BANDS: usize = 121;
+
+/// The smallest integer number of scene samples per detector pixel whose Nyquist frequency
+/// `k/(2·IFOV)` reaches the optical cutoff `cutoff_cy_per_rad` (cycles/rad), so that the
+/// scene grid holds every frequency the optics pass: `⌈2·IFOV·cutoff⌉`, at least 1;
+/// `None` for an unbounded or invalid cutoff.
+pub fn oversampling_for_cutoff(ifov_rad: f64, cutoff_cy_per_rad: f64) -> Option<usize> {
+    let k = (2.0 * ifov_rad * cutoff_cy_per_rad * (1.0 - 1e-12)).ceil();
+    (k.is_finite() && k >= 0.0 && k < 1e6).then(|| (k as usize).max(1))
+}
+
+/// The oversampling `eoir scene` uses when none is given: [`oversampling_for_cutoff`] for
+/// the optics' cutoff (D/λ at the scene's shortest wavelength, cycles/rad; `None` without
+/// an aperture term), between [`DEFAULT_OVERSAMPLING`] and [`MAX_DEFAULT_OVERSAMPLING`].
+pub fn default_oversampling(ifov_rad: f64, optical_cutoff_cy_per_rad: Option<f64>) -> usize {
+    optical_cutoff_cy_per_rad
+        .and_then(|c| oversampling_for_cutoff(ifov_rad, c))
+        .unwrap_or(DEFAULT_OVERSAMPLING)
+        .clamp(DEFAULT_OVERSAMPLING, MAX_DEFAULT_OVERSAMPLING)
+}
 
 /// Angular extent, rad, of `samples` samples spaced `spacing_rad` apart under the engine's
 /// paraxial convention: `samples · spacing_rad` (module documentation). Used for the
@@ -140,4 +165,38 @@ pub fn response_grid_um(lo_um: f64, hi_um: f64) -> Result<Vec<f64>> {
         (steps as usize + 1).max(MIN_BANDS)
     };
     SceneParams::uniform_grid(lo_um, hi_um, bands)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The oversampling rule is the smallest k with k/(2·IFOV) ≥ cutoff (checked by
+    /// search), MultimIR F/2 at 3.7 µm: 24 µm/100 mm, D/λ = 13 514 cy/rad → 2·2.4e-4·13514
+    /// = 6.49 → 7.
+    #[test]
+    fn oversampling_is_the_smallest_that_reaches_the_cutoff() {
+        for (ifov, cut) in [
+            (2.4e-4, 0.05 / 3.7e-6),
+            (2.4e-4, 0.05 / 4.55e-6),
+            (1e-4, 5e3),
+        ] {
+            let k = oversampling_for_cutoff(ifov, cut).unwrap();
+            let search = (1..100).find(|k| *k as f64 / (2.0 * ifov) >= cut * (1.0 - 1e-12));
+            assert_eq!(Some(k), search, "{ifov} {cut}");
+        }
+        assert_eq!(oversampling_for_cutoff(2.4e-4, 0.05 / 3.7e-6), Some(7));
+        assert_eq!(oversampling_for_cutoff(1e-4, f64::INFINITY), None);
+    }
+
+    /// The default stays between 2 and 4: 4 for MultimIR's F/2 (needs 6 at 4.55 µm), 2 for
+    /// optics that the detector-rate grid already holds, 2 without an aperture cutoff.
+    #[test]
+    fn default_oversampling_is_clamped() {
+        assert_eq!(default_oversampling(2.4e-4, Some(0.05 / 4.55e-6)), 4);
+        assert_eq!(default_oversampling(2.4e-4, Some(3e3)), 2);
+        assert_eq!(default_oversampling(2.4e-4, Some(7.0e3)), 4);
+        assert_eq!(default_oversampling(2.4e-4, Some(6.0e3)), 3);
+        assert_eq!(default_oversampling(2.4e-4, None), 2);
+    }
 }

@@ -1,9 +1,11 @@
 //! The sensor configuration schema (TOML), its validation and `--set` overrides.
 //!
 //! A sensor file has one section per stage of the chain. Transfer-function sections are
-//! optional: a section that is present is enabled, and its name is the name of the
-//! component everywhere else (the `eoir mtf` CSV columns, reports). Unknown keys are
-//! errors. Relative paths inside the file (CSV tables) are resolved against the file's
+//! optional: a section that is present is enabled unless it says `enabled = false`, and
+//! its name is the name of the component everywhere else (the `eoir mtf` CSV columns,
+//! reports). Every transfer function can be switched off that way, the detector footprint
+//! with `detector.footprint_enabled = false`, so that `--set …enabled=false` makes the
+//! unblurred reference ("truth image") of any run. Unknown keys are errors. Relative paths inside the file (CSV tables) are resolved against the file's
 //! directory.
 //!
 //! ```toml
@@ -39,8 +41,12 @@ pub use crate::spectrum::SpectrumConfig;
 
 pub use crate::detector::config::DetectorConfig;
 
-fn yes() -> bool {
+pub(crate) fn yes() -> bool {
     true
+}
+
+pub(crate) fn is_true(v: &bool) -> bool {
+    *v
 }
 
 fn unit_spectrum() -> SpectrumConfig {
@@ -85,6 +91,10 @@ impl Default for DiffractionConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AberrationConfig {
+    /// Include this component (`false` keeps the section but leaves it out of the
+    /// cascade, e.g. for the unblurred reference of a run).
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub enabled: bool,
     /// RMS wavefront error, waves (reliable up to ~0.1; W_pp/3.5 is a rule of thumb).
     pub rms_waves: f64,
 }
@@ -93,6 +103,10 @@ pub struct AberrationConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DefocusConfig {
+    /// Include this component (`false` keeps the section but leaves it out of the
+    /// cascade, e.g. for the unblurred reference of a run).
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub enabled: bool,
     /// Edge wavefront error W020, waves (the same at every wavelength).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub w020_waves: Option<f64>,
@@ -108,6 +122,10 @@ pub use crate::los::MotionConfig;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct JitterConfig {
+    /// Include this component (`false` keeps the section but leaves it out of the
+    /// cascade, e.g. for the unblurred reference of a run).
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub enabled: bool,
     /// RMS jitter per axis, rad.
     pub sigma_rad: f64,
 }
@@ -116,6 +134,10 @@ pub struct JitterConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GaussianConfig {
+    /// Include this component (`false` keeps the section but leaves it out of the
+    /// cascade, e.g. for the unblurred reference of a run).
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub enabled: bool,
     /// RMS width along x, rad.
     pub sigma_rad: f64,
     /// RMS width along y, rad (defaults to `sigma_rad`).
@@ -129,6 +151,9 @@ pub struct GaussianConfig {
 pub enum TurbulenceConfig {
     /// Horizontal path with constant Cn².
     Horizontal {
+        /// Include turbulence (`false` leaves it out of the cascade).
+        #[serde(default = "yes", skip_serializing_if = "is_true")]
+        enabled: bool,
         /// Refractive-index structure constant Cn², m^-2/3.
         cn2: f64,
         /// Path length, m.
@@ -136,6 +161,9 @@ pub enum TurbulenceConfig {
     },
     /// Slant path through Cn²(h) = Cn²₀ h^(−4/3).
     Slant {
+        /// Include turbulence (`false` leaves it out of the cascade).
+        #[serde(default = "yes", skip_serializing_if = "is_true")]
+        enabled: bool,
         /// Cn² at 1 m height, m^-2/3.
         cn2_at_1m: f64,
         /// Sensor height above ground, m (> 0).
@@ -147,10 +175,24 @@ pub enum TurbulenceConfig {
     },
 }
 
+impl TurbulenceConfig {
+    /// Whether the section is enabled (`enabled`, true unless set to false).
+    pub fn is_enabled(&self) -> bool {
+        match self {
+            TurbulenceConfig::Horizontal { enabled, .. }
+            | TurbulenceConfig::Slant { enabled, .. } => *enabled,
+        }
+    }
+}
+
 /// `[aerosol]`: aerosol forward-scattering transfer function (docs/design.md §4.8).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AerosolConfig {
+    /// Include this component (`false` keeps the section but leaves it out of the
+    /// cascade, e.g. for the unblurred reference of a run).
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub enabled: bool,
     /// Absorption coefficient k, 1/m.
     pub absorption_per_m: f64,
     /// Scattering coefficient σ, 1/m.
@@ -170,6 +212,10 @@ pub struct AerosolConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MeasuredConfig {
+    /// Include this component (`false` keeps the section but leaves it out of the
+    /// cascade, e.g. for the unblurred reference of a run).
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub enabled: bool,
     /// Two-column CSV (cycles/mrad, MTF), relative to the sensor file.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub csv: Option<PathBuf>,
@@ -563,7 +609,7 @@ impl SensorConfig {
             }
         }
         match &self.turbulence {
-            Some(TurbulenceConfig::Horizontal { cn2, range_m }) => {
+            Some(TurbulenceConfig::Horizontal { cn2, range_m, .. }) => {
                 require_non_negative("turbulence.cn2", *cn2)?;
                 require_positive("turbulence.range_m", *range_m)?;
             }
@@ -572,6 +618,7 @@ impl SensorConfig {
                 sensor_height_m,
                 target_height_m,
                 range_m,
+                ..
             }) => {
                 crate::atmosphere::SlantPath::new(
                     *cn2_at_1m,

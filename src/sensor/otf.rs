@@ -132,27 +132,31 @@ impl SystemOtf {
     /// and reads every file first, so no stage can build a transfer function from an
     /// unresolved description (read it with [`super::Sensor::otf`]).
     pub(super) fn new(sensor: &SensorConfig, measured: Option<MeasuredMtf>) -> Result<Self> {
+        // A section with `enabled = false` is read and checked but left out.
+        let measured = measured.filter(|_| sensor.measured.as_ref().is_some_and(|m| m.enabled));
         let mut components = Vec::new();
         if sensor.diffraction.enabled {
             components.push(Component::Diffraction);
         }
-        let aberration_rms_waves = sensor.aberration.as_ref().map_or(0.0, |a| a.rms_waves);
-        if sensor.aberration.is_some() {
+        let aberration = sensor.aberration.as_ref().filter(|a| a.enabled);
+        let aberration_rms_waves = aberration.map_or(0.0, |a| a.rms_waves);
+        if aberration.is_some() {
             components.push(Component::Aberration);
         }
-        let defocus = sensor
-            .defocus
-            .as_ref()
-            .map(|d| match (d.w020_waves, d.focus_shift_m) {
+        let defocus = sensor.defocus.as_ref().filter(|d| d.enabled).map(|d| {
+            match (d.w020_waves, d.focus_shift_m) {
                 (Some(w), _) => DefocusAmount::Waves(w),
                 (None, Some(z)) => DefocusAmount::FocusShift(z),
                 (None, None) => DefocusAmount::Waves(0.0),
-            });
+            }
+        });
         if defocus.is_some() {
             components.push(Component::Defocus);
         }
-        components.push(Component::Detector);
-        let (smear_rad, smear_direction_rad) = match &sensor.motion {
+        if sensor.detector.footprint_enabled {
+            components.push(Component::Detector);
+        }
+        let (smear_rad, smear_direction_rad) = match sensor.motion.as_ref().filter(|m| m.enabled) {
             Some(m) => {
                 components.push(Component::Motion);
                 let t = sensor.detector.integration_time_s;
@@ -168,20 +172,24 @@ impl SystemOtf {
             }
             None => (0.0, 0.0),
         };
-        let jitter_sigma_rad = sensor.jitter.as_ref().map_or(0.0, |j| j.sigma_rad);
-        if sensor.jitter.is_some() {
+        let jitter = sensor.jitter.as_ref().filter(|j| j.enabled);
+        let jitter_sigma_rad = jitter.map_or(0.0, |j| j.sigma_rad);
+        if jitter.is_some() {
             components.push(Component::Jitter);
         }
-        let turbulence = match &sensor.turbulence {
-            Some(TurbulenceConfig::Horizontal { cn2, range_m }) => Some(Turbulence::Horizontal {
-                cn2: *cn2,
-                range_m: *range_m,
-            }),
+        let turbulence = match sensor.turbulence.as_ref().filter(|t| t.is_enabled()) {
+            Some(TurbulenceConfig::Horizontal { cn2, range_m, .. }) => {
+                Some(Turbulence::Horizontal {
+                    cn2: *cn2,
+                    range_m: *range_m,
+                })
+            }
             Some(TurbulenceConfig::Slant {
                 cn2_at_1m,
                 sensor_height_m,
                 target_height_m,
                 range_m,
+                ..
             }) => {
                 let path = atmosphere::SlantPath::new(
                     *cn2_at_1m,
@@ -198,13 +206,15 @@ impl SystemOtf {
         if turbulence.is_some() {
             components.push(Component::Turbulence);
         }
-        if sensor.aerosol.is_some() {
+        let aerosol = sensor.aerosol.clone().filter(|a| a.enabled);
+        if aerosol.is_some() {
             components.push(Component::Aerosol);
         }
-        let gaussian_sigma_rad = sensor.gaussian.as_ref().map_or((0.0, 0.0), |g| {
+        let gaussian = sensor.gaussian.as_ref().filter(|g| g.enabled);
+        let gaussian_sigma_rad = gaussian.map_or((0.0, 0.0), |g| {
             (g.sigma_rad, g.sigma_y_rad.unwrap_or(g.sigma_rad))
         });
-        if sensor.gaussian.is_some() {
+        if gaussian.is_some() {
             components.push(Component::Gaussian);
         }
         if measured.is_some() {
@@ -225,7 +235,7 @@ impl SystemOtf {
             jitter_sigma_rad,
             gaussian_sigma_rad,
             turbulence,
-            aerosol: sensor.aerosol.clone(),
+            aerosol,
             measured,
         })
     }
@@ -297,6 +307,15 @@ impl SystemOtf {
         matches!(self.defocus, Some(DefocusAmount::FocusShift(_)))
     }
 
+    /// Whether the defocus factor is the diffraction form, bounded by the aperture cutoff
+    /// D/λ (a diffraction or aberration term is on), rather than the geometric-optics
+    /// blur disc without a cutoff ([`optics::defocus_geometric`]).
+    pub fn defocus_bounded(&self) -> bool {
+        self.components
+            .iter()
+            .any(|c| matches!(c, Component::Diffraction | Component::Aberration))
+    }
+
     /// Aerosol particle radius a (m), if the aerosol component is enabled: its transfer
     /// function depends on frequency through ρλ/a (docs/design.md §4.8).
     pub fn aerosol_particle_radius_m(&self) -> Option<f64> {
@@ -359,9 +378,15 @@ impl SystemOtf {
                     }
                     None => 0.0,
                 };
-                // 0 beyond the cutoff D/λ (optics::defocus): no aperture term passes
-                // anything there, even with `[diffraction] enabled = false`.
-                optics::defocus(x(), w020)
+                // With the diffraction (or aberration) term, the Hopkins factor, 0 beyond
+                // the cutoff D/λ; without an aperture term, defocus in the
+                // geometric-optics limit, the blur disc's transfer function, which rolls
+                // off without a cutoff (optics::defocus_geometric).
+                if self.defocus_bounded() {
+                    optics::defocus(x(), w020)
+                } else {
+                    optics::defocus_geometric(x(), w020)
+                }
             }
             Component::Detector => optics::detector_footprint(
                 fx,

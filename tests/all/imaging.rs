@@ -171,6 +171,9 @@ fn frequency_domain_sum_equals_per_band_blur() {
     let (ny, nx) = (sy.padded_len, sx.padded_len);
     let w = SpectralWeights::new(&s, &c.meta).unwrap();
     let otf = imager.otf();
+    // The scene is sampled at the detector pitch, 20.8 cy/mm Nyquist, and the F/2 optics
+    // pass 110 cy/mm: the engine tapers the OTF to 0 at the scene's Nyquist circle.
+    let taper = *imager.grid_taper().expect("scene coarser than the optics");
     let mut planner = FftPlanner::<f64>::new();
     let (fwd_x, inv_x) = (planner.plan_fft_forward(nx), planner.plan_fft_inverse(nx));
     let (fwd_y, inv_y) = (planner.plan_fft_forward(ny), planner.plan_fft_inverse(ny));
@@ -203,7 +206,8 @@ fn frequency_domain_sum_equals_per_band_blur() {
         let mut a = padded.mapv(|v| Complex64::new(v, 0.0));
         fft2(&mut a, fwd_x.as_ref(), fwd_y.as_ref());
         for ((v, u), z) in a.indexed_iter_mut() {
-            *z *= otf.evaluate(freq(u, nx, ifov).abs(), freq(v, ny, ifov), *lambda);
+            let (fx, fy) = (freq(u, nx, ifov).abs(), freq(v, ny, ifov));
+            *z *= otf.evaluate(fx, fy, *lambda) * taper.factor(fx.hypot(fy));
         }
         fft2(&mut a, inv_x.as_ref(), inv_y.as_ref());
         for r in 0..rows {
@@ -422,4 +426,163 @@ fn an_imager_reuses_its_frame_buffers_without_carrying_values_over() {
     }
     imager.release_frame_buffers();
     assert_eq!(imager.kept_frame_buffers(), 0);
+}
+
+/// Relative excess of `e` over the uniform run `base` at (r, c).
+fn excess(e: &Array2<f64>, base: &Array2<f64>, r: usize, c: usize) -> f64 {
+    (e[[r, c]] - base[[r, c]]) / base[[r, c]]
+}
+
+/// No artefact cross (issue 38): a bright source on a uniform 300 K blackbody scene
+/// through the MultimIR-like F/2 sensor (optics pass 110 cy/mm, more than the scene grid's
+/// Nyquist of 41.7 cy/mm at k = 2 and 83.3 cy/mm at k = 4) leaves no more excess in the
+/// mean electrons along its own row and column than 6 px beside them, at 30–44 px from it
+/// (4–8 px, averaged; summed over the four directions and every distance). Before the
+/// scene-grid taper, a 20× hot square at k = 2 left 3–6× more along the axes (the
+/// issue's measurement). The bound 1.2 leaves room for the isotropic diffraction halo,
+/// which beside is at a radius up to 3 % larger (≤ 10 % less for its 1/r³ tail) — a
+/// cross of the size measured before would exceed it several times. Two sources: a 2 × 2-pixel square at
+/// 20× the background radiance, and a single scene sample at 400·(k/2)² × (a point source
+/// of the same flux at both k).
+#[test]
+fn bright_sources_leave_no_cross_at_k2_and_k4() {
+    let n = 100usize;
+    let (r0, c0) = (50usize, 50usize);
+    let s = sensor(n, n, &[]);
+    let wl = grid(4.5, 5.25, 5);
+    for k in [2usize, 4] {
+        let ns = (n + 8) * k;
+        let ifov = s.ifov_rad() / k as f64;
+        let mut data = Array3::<f32>::zeros((wl.len(), ns, ns));
+        for (b, l) in wl.iter().enumerate() {
+            data.index_axis_mut(ndarray::Axis(0), b)
+                .fill(planck_spectral_radiance(*l, 300.0) as f32);
+        }
+        let run64 = |d: Array3<f32>| {
+            let c = cube(d, wl.clone(), ifov);
+            let g = c.meta.geometry.unwrap();
+            let imager = Imager::new(&s, &c.meta, &g, DEFAULT_WRAP_TOLERANCE)
+                .unwrap()
+                .with_precision(FftPrecision::F64);
+            assert!(imager.grid_taper().is_some(), "k = {k}");
+            assert!(
+                imager
+                    .sampling()
+                    .warnings
+                    .iter()
+                    .any(|w| w.contains("optical cutoff")),
+                "k = {k}: {:?}",
+                imager.sampling().warnings
+            );
+            let mut reader = MemoryCube::new(c);
+            imager.mean_electrons(&mut reader, 0, |_, _| {}).unwrap().0
+        };
+        let base = run64(data.clone());
+        // Scene coordinate of detector pixel j's centre: first + j·k.
+        let first = (ns as f64 - 1.0) / 2.0 - (n as f64 - 1.0) / 2.0 * k as f64;
+        let (cy, cx) = (first + (r0 * k) as f64, first + (c0 * k) as f64);
+        let square = |d: &mut Array3<f32>| {
+            for b in 0..wl.len() {
+                for i in 0..ns {
+                    for j in 0..ns {
+                        if (i as f64 - cy).abs() < k as f64 && (j as f64 - cx).abs() < k as f64 {
+                            d[[b, i, j]] *= 20.0;
+                        }
+                    }
+                }
+            }
+        };
+        let point = |d: &mut Array3<f32>| {
+            let gain = 400.0 * (k as f32 / 2.0).powi(2);
+            for b in 0..wl.len() {
+                d[[b, cy.round() as usize, cx.round() as usize]] *= gain;
+            }
+        };
+        for (name, source) in [
+            ("square", &square as &dyn Fn(&mut Array3<f32>)),
+            ("point", &point),
+        ] {
+            let mut d = data.clone();
+            source(&mut d);
+            let e = run64(d);
+            // Every distance, and beside at 4–8 px on either side (averaged), so that the
+            // isotropic rings the detector samples at one phase along a row do not pass
+            // for a cross.
+            let (mut along, mut beside) = (0.0, 0.0);
+            for dist in 30..=44i64 {
+                for (sr, sc) in [(0i64, 1i64), (0, -1), (1, 0), (-1, 0)] {
+                    let at = |off: i64| {
+                        let r = (r0 as i64 + sr * dist + sc.abs() * off) as usize;
+                        let c = (c0 as i64 + sc * dist + sr.abs() * off) as usize;
+                        excess(&e, &base, r, c)
+                    };
+                    along += at(0);
+                    beside += (4..=8).map(|o| at(o) + at(-o)).sum::<f64>() / 10.0;
+                }
+            }
+            assert!(
+                beside > 0.0,
+                "{name}, k = {k}: no halo measured ({beside:e})"
+            );
+            assert!(
+                along <= 1.2 * beside,
+                "{name}, k = {k}: excess along the axes {along:e}, beside {beside:e} (ratio {:.2})",
+                along / beside
+            );
+        }
+    }
+}
+
+/// Truth image: with every transfer function switched off (`diffraction.enabled=false`,
+/// `detector.footprint_enabled=false`, and `enabled=false` on the other sections) the run
+/// is the unblurred reference: each detector pixel is the spectral sum `Σ_b w_b L_b` of the
+/// scene sample at its centre (odd k = 1 and 3, where centres fall on samples), within
+/// 1e-9 relative; and no taper is applied (nothing to ring).
+#[test]
+fn everything_off_gives_the_unblurred_reference() {
+    let (rows, cols) = (10, 12);
+    let s = sensor(
+        rows,
+        cols,
+        &[
+            "diffraction.enabled=false",
+            "detector.footprint_enabled=false",
+            "aberration.rms_waves=0.05",
+            "aberration.enabled=false",
+            "jitter.sigma_rad=4e-5",
+            "jitter.enabled=false",
+        ],
+    );
+    assert!(s.otf().components().is_empty());
+    let wl = grid(4.5, 5.25, 4);
+    for k in [1usize, 3] {
+        let (sr, sc) = (rows * k + 6, cols * k + 6);
+        let data = pattern(wl.len(), sr, sc);
+        let c = cube(data.clone(), wl.clone(), s.ifov_rad() / k as f64);
+        let w = SpectralWeights::new(&s, &c.meta).unwrap();
+        let g = c.meta.geometry.unwrap();
+        let imager = Imager::new(&s, &c.meta, &g, DEFAULT_WRAP_TOLERANCE)
+            .unwrap()
+            .with_precision(FftPrecision::F64);
+        assert!(imager.grid_taper().is_none());
+        let mut reader = MemoryCube::new(c);
+        let (e, _) = imager.mean_electrons(&mut reader, 0, |_, _| {}).unwrap();
+        let first_r = imager.sampling().y.first.round() as usize;
+        let first_c = imager.sampling().x.first.round() as usize;
+        for r in 0..rows {
+            for cc in 0..cols {
+                let want: f64 = (0..wl.len())
+                    .map(|b| {
+                        w.electrons_per_unit[b]
+                            * data[[b, first_r + r * k, first_c + cc * k]] as f64
+                    })
+                    .sum();
+                assert!(
+                    ((e[[r, cc]] - want) / want).abs() < 1e-9,
+                    "k = {k} ({r}, {cc}): {} vs {want}",
+                    e[[r, cc]]
+                );
+            }
+        }
+    }
 }

@@ -45,6 +45,7 @@ fn los(t: &TrajectoryConfig, integration_time_s: f64, seed: u64, span: (f64, f64
 fn linear_path_otf_is_the_closed_form_sinc() {
     // 10 m/s at 1 km (0.01 rad/s) at 30°, plus a pan: one constant rate.
     let motion = MotionConfig {
+        enabled: true,
         smear_rad: None,
         angular_rate_rad_s: None,
         velocity_m_s: Some(10.0),
@@ -94,6 +95,7 @@ fn linear_path_otf_is_the_closed_form_sinc() {
 #[test]
 fn smear_rad_drift_uses_the_integration_time() {
     let motion = MotionConfig {
+        enabled: true,
         smear_rad: Some(3e-5),
         angular_rate_rad_s: None,
         velocity_m_s: None,
@@ -527,6 +529,7 @@ fn measured_trajectory_is_interpolated_with_the_stated_signs() {
     let mut t = trajectory();
     t.file = Some(PathBuf::from("track.csv"));
     let motion = MotionConfig {
+        enabled: true,
         smear_rad: None,
         angular_rate_rad_s: Some(1e-3),
         velocity_m_s: None,

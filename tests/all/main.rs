@@ -8,6 +8,7 @@ mod calibration_routes;
 mod cfa;
 mod characterize;
 mod cli;
+mod conformance;
 mod detector;
 mod docs;
 mod edge_mtf;

@@ -574,3 +574,182 @@ fn measured_mtf_csv_errors_name_file_and_line() {
         other => panic!("expected Io error, got {other}"),
     }
 }
+
+// ---------------------------------------------------------------------------------------
+// Truth images: every transfer-function section can be switched off; defocus without an
+// aperture term is the geometric blur disc
+// ---------------------------------------------------------------------------------------
+
+/// The transfer function of a uniform disc of radius `r` at frequency `nu` (same length
+/// units), by quadrature of its 2-D Fourier transform along one axis:
+/// `(2/(π r²)) ∫_{−r}^{r} √(r² − x²) cos(2π ν x) dx` (midpoint rule, 200 000 intervals in
+/// x = r sin t to smooth the square-root ends).
+fn disc_otf_numerical(r: f64, nu: f64) -> f64 {
+    let n = 200_000;
+    let h = PI / n as f64;
+    let mut s = 0.0;
+    for i in 0..n {
+        let t = -PI / 2.0 + (i as f64 + 0.5) * h;
+        // x = r sin t, dx = r cos t dt, √(r² − x²) = r cos t.
+        let x = r * t.sin();
+        s += r * t.cos() * (2.0 * PI * nu * x).cos() * r * t.cos() * h;
+    }
+    2.0 * s / (PI * r * r)
+}
+
+/// Defocus without diffraction is the geometric blur disc of radius 4NλW020: its transfer
+/// function `2J1(8πW020 X)/(8πW020 X)` equals the Fourier transform of the uniform disc,
+/// computed by quadrature (ν = X/(λN) with λN = 1, so r = 4·W020), within 1e-7, for
+/// frequencies far beyond the aperture cutoff X = 1 too.
+#[test]
+fn geometric_defocus_is_the_blur_disc_transfer_function() {
+    for w020 in [0.3, 1.0, 2.5] {
+        for x in [0.05, 0.2, 0.5, 0.9, 1.0, 1.3, 2.0, 3.7] {
+            let want = disc_otf_numerical(4.0 * w020, x);
+            let got = eoir::optics::defocus_geometric(x, w020);
+            assert!(
+                (got - want).abs() < 1e-7,
+                "W020 {w020}, X {x}: {got} vs {want}"
+            );
+        }
+    }
+}
+
+fn test_sensor(extra: &[&str]) -> eoir::sensor::Sensor {
+    let text = r#"
+name = "t"
+[optics]
+focal_length_m = 0.1
+f_number = 2.0
+[filter]
+kind = "top_hat"
+lo_um = 4.5
+hi_um = 5.0
+[detector]
+rows = 8
+cols = 8
+pitch_m = 24e-6
+active_width_m = 20e-6
+integration_time_s = 1e-3
+quantum_efficiency = { kind = "ideal_qe", peak = 0.7, cutoff_um = 5.3 }
+[aberration]
+rms_waves = 0.05
+[defocus]
+w020_waves = 0.7
+[motion]
+smear_rad = 3e-5
+[jitter]
+sigma_rad = 1e-5
+[gaussian]
+sigma_rad = 2e-5
+[turbulence]
+path = "horizontal"
+cn2 = 1e-14
+range_m = 1000.0
+[aerosol]
+absorption_per_m = 1e-4
+scattering_per_m = 2e-4
+range_m = 1000.0
+particle_radius_m = 1e-6
+[measured]
+freq_cy_per_mrad = [0.0, 10.0, 100.0]
+mtf = [1.0, 0.9, 0.5]
+"#;
+    let o: Vec<String> = extra.iter().map(|s| s.to_string()).collect();
+    let cfg =
+        eoir::sensor::SensorConfig::from_toml_str(text, "t", std::path::PathBuf::from("."), &o)
+            .unwrap();
+    eoir::sensor::Sensor::build(&cfg).unwrap()
+}
+
+/// Every transfer-function section takes `enabled = false` (the detector footprint
+/// `detector.footprint_enabled = false`): the component leaves the cascade, the others
+/// keep their values, and with all of them off the system passes everything (1 at every
+/// frequency: the unblurred reference of a run). Checked against the system built
+/// without the section.
+#[test]
+fn every_transfer_function_can_be_switched_off() {
+    use eoir::sensor::Component;
+    let all = test_sensor(&[]);
+    assert_eq!(all.otf().components().len(), Component::ALL.len());
+    let keys = [
+        (Component::Diffraction, "diffraction.enabled=false"),
+        (Component::Aberration, "aberration.enabled=false"),
+        (Component::Defocus, "defocus.enabled=false"),
+        (Component::Detector, "detector.footprint_enabled=false"),
+        (Component::Motion, "motion.enabled=false"),
+        (Component::Jitter, "jitter.enabled=false"),
+        (Component::Turbulence, "turbulence.enabled=false"),
+        (Component::Aerosol, "aerosol.enabled=false"),
+        (Component::Gaussian, "gaussian.enabled=false"),
+        (Component::Measured, "measured.enabled=false"),
+    ];
+    for (c, key) in keys {
+        let s = test_sensor(&[key]);
+        assert!(!s.otf().components().contains(&c), "{key}");
+        assert_eq!(
+            s.otf().components().len(),
+            Component::ALL.len() - 1,
+            "{key}"
+        );
+        for (fx, fy) in [(1000.0, 0.0), (3000.0, -2000.0), (7000.0, 4000.0)] {
+            let want: f64 = Component::ALL
+                .iter()
+                .filter(|o| **o != c)
+                .map(|o| s.otf().component(*o, fx, fy, 4.7))
+                .product();
+            let got = s.otf().evaluate(fx, fy, 4.7);
+            assert!((got - want).abs() < 1e-15, "{key}: {got} vs {want}");
+            // The components left keep their values (defocus changes form when the
+            // aperture terms go: checked below).
+            for o in Component::ALL
+                .iter()
+                .filter(|o| **o != c && **o != Component::Defocus)
+            {
+                assert_eq!(
+                    s.otf().component(*o, fx, fy, 4.7),
+                    all.otf().component(*o, fx, fy, 4.7),
+                    "{key}: {o:?}"
+                );
+            }
+        }
+        // The resolved configuration keeps the switch.
+        let toml = s.to_toml_string().unwrap();
+        assert!(toml.contains("enabled = false"), "{key}: {toml}");
+    }
+    let none: Vec<&str> = keys.iter().map(|k| k.1).collect();
+    let s = test_sensor(&none);
+    assert!(s.otf().components().is_empty());
+    for (fx, fy) in [(0.0, 0.0), (5e3, 0.0), (2e4, 3e4)] {
+        assert_eq!(s.otf().evaluate(fx, fy, 4.7), 1.0);
+    }
+}
+
+/// Without diffraction and aberration the defocus component is the geometric blur disc
+/// (no cutoff at D/λ: non-zero at X = 1.3, continuous through X = 1); with the aperture
+/// terms it is Hopkins' factor, 0 beyond the cutoff.
+#[test]
+fn defocus_without_diffraction_rolls_off_instead_of_stopping() {
+    use eoir::sensor::Component;
+    let lambda = 4.7;
+    let fc = 0.05 / (lambda * 1e-6);
+    let geo = test_sensor(&["diffraction.enabled=false", "aberration.enabled=false"]);
+    let with = test_sensor(&[]);
+    for x in [0.3, 0.999_999, 1.0, 1.000_001, 1.3, 2.5] {
+        let g = geo.otf().component(Component::Defocus, x * fc, 0.0, lambda);
+        let want = eoir::optics::defocus_geometric(x, 0.7);
+        assert!((g - want).abs() < 1e-12, "X {x}: {g} vs {want}");
+        let h = with
+            .otf()
+            .component(Component::Defocus, x * fc, 0.0, lambda);
+        if x > 1.0 {
+            assert_eq!(h, 0.0, "X {x}");
+        }
+    }
+    assert!(
+        geo.otf()
+            .component(Component::Defocus, 1.3 * fc, 0.0, lambda)
+            .abs()
+            > 1e-3
+    );
+}

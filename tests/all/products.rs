@@ -311,3 +311,49 @@ fn spectral_chain_holds_the_preset_curves_and_multiplies_to_the_response() {
         );
     }
 }
+
+/// Saturation above 1 % of the pixels is a warning that names the remedy (issue 38): with
+/// MultimIR's auto gain, `detector.auto_gain.fraction` for pixels at the ADC maximum; with
+/// the `ccd` preset's fixed gain, `detector.gain_dn_per_e`; at the full well, the
+/// integration time. 0.5 % saturated is no warning; the counted share is the one built.
+#[test]
+fn saturation_is_a_warning_naming_the_remedy() {
+    use eoir::report::saturation_warning;
+    use ndarray::Array2;
+    let build =
+        |name: &str| eoir::sensor::Sensor::build(&presets::load(name, &[], &[]).unwrap()).unwrap();
+    let (rows, cols) = (20, 50); // 1000 pixels
+    for (name, remedy) in [
+        ("multimir", "detector.auto_gain.fraction"),
+        ("ccd", "detector.gain_dn_per_e"),
+    ] {
+        let s = build(name);
+        let max_dn = s.detector.max_dn() as u16;
+        let electrons = Array2::<f32>::from_elem((rows, cols), 1.0);
+        let mut dn = Array2::<u16>::from_elem((rows, cols), 100);
+        for i in 0..5 {
+            dn[[0, i]] = max_dn;
+        }
+        assert!(
+            saturation_warning(&s, &electrons, &dn).is_none(),
+            "{name}: 0.5 %"
+        );
+        for i in 0..50 {
+            dn[[1, i]] = max_dn;
+        }
+        let w = saturation_warning(&s, &electrons, &dn).expect("5.5 % saturated");
+        assert!(
+            w.starts_with("5.50 % of the pixels are saturated"),
+            "{name}: {w}"
+        );
+        assert!(w.contains(remedy), "{name}: {w}");
+        // At the full well instead: the integration time.
+        let dn = Array2::<u16>::from_elem((rows, cols), 100);
+        let mut e = electrons.clone();
+        for i in 0..cols {
+            e[[2, i]] = s.detector.full_well_e as f32 * 1.01;
+        }
+        let w = saturation_warning(&s, &e, &dn).expect("5 % at the full well");
+        assert!(w.contains("detector.integration_time_s"), "{name}: {w}");
+    }
+}
