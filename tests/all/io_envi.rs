@@ -626,7 +626,7 @@ fn malformed_headers_give_one_clear_error() {
         ),
         (
             header(dims, 4, "bsq", "").replace("ENVI\n", "NOT ENVI\n"),
-            "first line must be `ENVI`",
+            "expected `ENVI` as the first line",
         ),
         (
             header(dims, 4, "bsq", "").replace("samples = 2", "samples = two"),
