@@ -179,8 +179,7 @@ pub fn redact_quoted(message: &str, max: usize, keep_names: bool) -> String {
     let is_name = |q: &str| {
         !q.is_empty()
             && q.len() <= 40
-            && q
-                .chars()
+            && q.chars()
                 .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'))
     };
     let mut out = String::new();
@@ -258,6 +257,9 @@ mod tests {
         let m = "unknown field `root:x:0:0:SECRET`, expected `a`";
         assert!(!redact_quoted(m, 200, true).contains("SECRET"));
         // An unclosed quote hides the rest.
-        assert_eq!(redact_quoted("bad `SECRET", 200, true), "bad (text not shown)");
+        assert_eq!(
+            redact_quoted("bad `SECRET", 200, true),
+            "bad (text not shown)"
+        );
     }
 }

@@ -309,9 +309,7 @@ impl Spectrum {
             if !(w.is_finite() && w > 0.0) {
                 return Err(Error::format(
                     path,
-                    format!(
-                        "line {line_no}: wavelength {w}: expected a finite number of µm > 0"
-                    ),
+                    format!("line {line_no}: wavelength {w}: expected a finite number of µm > 0"),
                 ));
             }
             if let Some((prev_line, prev_w)) = prev {
@@ -327,9 +325,7 @@ impl Spectrum {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(Error::format(
                     path,
-                    format!(
-                        "line {line_no}: value {v}: expected a finite number >= 0"
-                    ),
+                    format!("line {line_no}: value {v}: expected a finite number >= 0"),
                 ));
             }
             prev = Some((line_no, w));

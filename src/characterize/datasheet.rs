@@ -27,7 +27,7 @@ pub fn write_outputs(c: &Characterization, out: &Path, title: &str) -> Result<()
 
 /// [`write_outputs`] into the directory `out` itself (the product set's staging place).
 fn write_into(c: &Characterization, out: &Path, title: &str) -> Result<()> {
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    crate::io::output::create_dir_all_guarded(out)?;
     let mut json = serde_json::to_string_pretty(c)
         .map_err(|e| Error::OutOfRange(format!("cannot encode characterization.json: {e}")))?;
     json.push('\n');

@@ -98,8 +98,7 @@ impl Descriptor {
                 continue;
             }
             let parts: Vec<&str> = t.split_whitespace().collect();
-            let bad =
-                |what: &str| Error::format(path, format!("line {line}: expected `{what}`"));
+            let bad = |what: &str| Error::format(path, format!("line {line}: expected `{what}`"));
             match parts[0] {
                 "v" if parts.len() == 2 => version = Some(parts[1].to_string()),
                 "v" => return Err(bad("v version")),

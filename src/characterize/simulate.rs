@@ -238,7 +238,7 @@ pub fn simulate(sensor: &SensorConfig, dir: &Path, options: &SimulateOptions) ->
     let tmp = set.staging_dir().to_path_buf();
     let result = (|| -> Result<Truth> {
         for sub in ["ptc", "dark", "spatial"] {
-            std::fs::create_dir_all(tmp.join(sub)).map_err(|e| Error::io(tmp.join(sub), e))?;
+            crate::io::output::create_dir_all_guarded(&tmp.join(sub))?;
         }
         let mut series: Vec<Series> = Vec::new();
         let mut exposure: u64 = 0;

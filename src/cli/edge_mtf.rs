@@ -104,24 +104,24 @@ pub fn edge_mtf(args: EdgeMtfArgs) -> Result<()> {
     );
     set.write("edge_mtf.png", |png_path| {
         plot::write_line_plot(
-        png_path,
-        &LinePlot {
-            title: &title,
-            x_label: "spatial frequency along the edge normal (cycles/pixel)",
-            y_label: "MTF",
-            series: vec![Series {
-                label: "measured",
-                x: &m.freq_cy_per_px,
-                y: &m.mtf,
-            }],
-            markers: vec![Marker {
-                label: "Nyquist",
-                x: 0.5,
-            }],
-            y_range: Some((0.0, m.mtf.iter().copied().fold(1.1, f64::max))),
-            size_px: (900, 600),
-        },
-    )
+            png_path,
+            &LinePlot {
+                title: &title,
+                x_label: "spatial frequency along the edge normal (cycles/pixel)",
+                y_label: "MTF",
+                series: vec![Series {
+                    label: "measured",
+                    x: &m.freq_cy_per_px,
+                    y: &m.mtf,
+                }],
+                markers: vec![Marker {
+                    label: "Nyquist",
+                    x: 0.5,
+                }],
+                y_range: Some((0.0, m.mtf.iter().copied().fold(1.1, f64::max))),
+                size_px: (900, 600),
+            },
+        )
     })?;
     set.write_json("edge_mtf.json", &report)?;
     let written = set.commit()?;

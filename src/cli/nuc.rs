@@ -134,8 +134,17 @@ fn fit(a: FitArgs) -> Result<()> {
     // The blackbody range the calibration searches (the coldest and hottest sources a
     // laboratory sets): 1e30 K or 0.001 K is a typing error, not a blackbody.
     let (t_lo, t_hi) = eoir::calibration::levels::SEARCH_RANGE_K;
-    if let Some(v) = t.iter().find(|v| !(v.is_finite() && (t_lo..=t_hi).contains(*v))) {
-        bail!("--temperatures-k: {v} K is not a blackbody temperature; give values from {t_lo} to {t_hi} K");
+    if let Some(v) = t
+        .iter()
+        .find(|v| !(v.is_finite() && (t_lo..=t_hi).contains(*v)))
+    {
+        // Scientific notation for the absurd ones (1e30, not thirty-one digits).
+        let shown = if (1e-3..1e6).contains(&v.abs()) {
+            format!("{v}")
+        } else {
+            format!("{v:e}")
+        };
+        bail!("--temperatures-k: {shown} K is not a blackbody temperature; give values from {t_lo} to {t_hi} K");
     }
     for (i, x) in t.iter().enumerate() {
         if t[..i].contains(x) {
@@ -277,12 +286,14 @@ fn apply(a: ApplyArgs) -> Result<()> {
     let mut mask = coeffs.bad_pixel_map().mask().clone();
     let from_map = mask.iter().filter(|b| **b).count();
     let mut non_finite = 0usize;
-    ndarray::Zip::from(&mut mask).and(&corrected).for_each(|m, v| {
-        if !*m && !v.is_finite() {
-            *m = true;
-            non_finite += 1;
-        }
-    });
+    ndarray::Zip::from(&mut mask)
+        .and(&corrected)
+        .for_each(|m, v| {
+            if !*m && !v.is_finite() {
+                *m = true;
+                non_finite += 1;
+            }
+        });
     let bad = bad_pixels::BadPixelMap::from_mask(mask);
     let corrected = if bad.count() > 0 {
         bad_pixels::replace(corrected.view(), &bad)?

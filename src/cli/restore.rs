@@ -264,7 +264,9 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
         stored.iter().map(|&v| v as f64),
         "restored.tiff stores 32-bit floats (|value| <= 3.4e38): the input holds values too large for the restoration to be stored",
     )?;
-    set.write("restored.tiff", |p| raster::write_tiff_f32(p, stored.view()))?;
+    set.write("restored.tiff", |p| {
+        raster::write_tiff_f32(p, stored.view())
+    })?;
     let grey = display_stretch(&restored);
     let samples: Vec<u8> = grey.iter().copied().collect();
     let bytes = display::encode_png(cols, rows, 1, &samples)?;

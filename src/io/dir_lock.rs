@@ -84,8 +84,8 @@ mod tests {
     #[test]
     fn a_second_holder_waits_for_the_first() {
         let dir = tempfile::tempdir().unwrap();
-        let first = DirLock::acquire(dir.path(), || panic!("the first holder cannot wait"))
-            .unwrap();
+        let first =
+            DirLock::acquire(dir.path(), || panic!("the first holder cannot wait")).unwrap();
         let released = Arc::new(AtomicBool::new(false));
         let waited = Arc::new(AtomicBool::new(false));
         let (r, w, p) = (released.clone(), waited.clone(), dir.path().to_path_buf());
@@ -98,6 +98,9 @@ mod tests {
         released.store(true, Ordering::SeqCst);
         drop(first);
         second.join().unwrap();
-        assert!(waited.load(Ordering::SeqCst), "the waiting callback never ran");
+        assert!(
+            waited.load(Ordering::SeqCst),
+            "the waiting callback never ran"
+        );
     }
 }

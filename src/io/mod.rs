@@ -25,6 +25,7 @@ use crate::error::{Error, Result};
 use crate::scene::{Cube, CubeMeta};
 
 pub(crate) mod binary;
+pub mod dir_lock;
 pub mod envi;
 pub mod exr;
 #[cfg(feature = "hdf5")]
@@ -33,7 +34,6 @@ pub mod input;
 pub mod mapped;
 pub mod metadata;
 pub mod npy;
-pub mod dir_lock;
 pub mod output;
 pub mod raster;
 pub(crate) mod spill;

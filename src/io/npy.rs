@@ -228,9 +228,9 @@ impl PyParser<'_> {
                     self.i += 1;
                 }
                 let text = std::str::from_utf8(&self.s[start..self.i]).unwrap_or("");
-                let n = text.parse::<u64>().map_err(|_| {
-                    format!("a number too large at byte {start} of the header")
-                })?;
+                let n = text
+                    .parse::<u64>()
+                    .map_err(|_| format!("a number too large at byte {start} of the header"))?;
                 // Python 2 long suffix.
                 if matches!(self.s.get(self.i), Some(b'L' | b'l')) {
                     self.i += 1;

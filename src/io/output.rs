@@ -103,6 +103,15 @@ fn remove_empty_dirs(dir: &Path, top: &Path) {
     }
 }
 
+/// `std::fs::create_dir_all` for directories inside a staging directory, holding the
+/// clean-up lock: once the signal handler has removed the staging directory (and kept
+/// the lock), a writer still running cannot create it again and leave it behind — it
+/// blocks here until the process exits, like a writer registering its next file.
+pub fn create_dir_all_guarded(path: &Path) -> Result<()> {
+    let _list = cleanup_list();
+    std::fs::create_dir_all(path).map_err(|e| Error::io(path, e))
+}
+
 /// Passes of [`remove_any`] over a directory that another thread may still be adding a
 /// file to (each writer adds at most one once the clean-up holds the lock).
 const REMOVE_PASSES: usize = 100;
@@ -392,7 +401,7 @@ impl ProductSet {
         }
         let staged = self.staging.join(name);
         if let Some(parent) = staged.parent() {
-            std::fs::create_dir_all(parent).map_err(|e| self.name_final(Error::io(parent, e)))?;
+            create_dir_all_guarded(parent).map_err(|e| self.name_final(e))?;
         }
         write(&staged).map_err(|e| self.name_final(e))?;
         Ok(self.dir.join(name))

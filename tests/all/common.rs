@@ -312,4 +312,3 @@ pub fn fixture_nuc(d: &Path) {
     );
     assert_eq!(o.code, Some(0), "{}", o.stderr);
 }
-

@@ -360,7 +360,10 @@ fn nuc_pair(dir: &Path, name: &str, version1: bool) -> (Vec<u8>, Vec<u8>) {
     use eoir::processing::nuc::NucCoefficients;
     let lo = ndarray::Array2::from_shape_fn((6, 5), |(r, c)| 1000.0 + (r * 5 + c) as f64);
     let hi = lo.mapv(|v| 2.0 * v);
-    let levels = [(lo.mean().unwrap(), lo.view()), (hi.mean().unwrap(), hi.view())];
+    let levels = [
+        (lo.mean().unwrap(), lo.view()),
+        (hi.mean().unwrap(), hi.view()),
+    ];
     let coeffs = NucCoefficients::fit(&levels, 1).unwrap();
     let npy = dir.join(format!("{name}.npy"));
     coeffs.save(&npy).unwrap();

@@ -17,8 +17,8 @@ use rand::{RngExt, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 
 use super::common::{
-    assert_one_error, eoir, finish, finish_within, fixture_scene, listing, mkfifo,
-    spawn_limited, spawn_limited_with, Outcome, LONG_RUN_AFTER,
+    assert_one_error, eoir, finish, finish_within, fixture_scene, listing, mkfifo, spawn_limited,
+    spawn_limited_with, Outcome, LONG_RUN_AFTER,
 };
 
 /// A multi-file command: how to write the old set and the new one into `out`.
@@ -38,12 +38,7 @@ fn os(v: &[String]) -> Vec<OsString> {
     v.iter().map(OsString::from).collect()
 }
 
-const SMALL: [&str; 4] = [
-    "--set",
-    "detector.rows=16",
-    "--set",
-    "detector.cols=16",
-];
+const SMALL: [&str; 4] = ["--set", "detector.rows=16", "--set", "detector.cols=16"];
 
 /// A Gaussian-blurred slanted edge, 64 × 64, 16-bit.
 fn edge_png(path: &Path, sigma_px: f64) {
@@ -69,8 +64,16 @@ fn simulate(d: &Path, out: &str, seed: &str) {
     let o = eoir(
         d,
         &[
-            "characterize", "--simulate", "--sensor", "multimir", "--window", "16", "--seed",
-            seed, "-o", out,
+            "characterize",
+            "--simulate",
+            "--sensor",
+            "multimir",
+            "--window",
+            "16",
+            "--seed",
+            seed,
+            "-o",
+            out,
         ],
     );
     assert_eq!(o.code, Some(0), "{}", o.stderr);
@@ -151,10 +154,14 @@ fn cases(d: &Path) -> Vec<Case> {
 
 type Listing = BTreeMap<PathBuf, (String, u64, u64)>;
 
-/// `l` with the hashes of volatile products zeroed.
+/// `l` with the sizes and hashes of volatile products zeroed.
 fn stable(mut l: Listing, volatile: &[&str]) -> Listing {
     for (k, v) in l.iter_mut() {
-        if volatile.iter().any(|n| k.file_name().is_some_and(|f| f == *n)) {
+        if volatile
+            .iter()
+            .any(|n| k.file_name().is_some_and(|f| f == *n))
+        {
+            v.1 = 0;
             v.2 = 0;
         }
     }
@@ -194,7 +201,11 @@ fn prepare(d: &Path, case: &Case) -> (Listing, Listing) {
     let o = finish_within(spawn_limited(d, &os(&case.old)), case.name, LONG_RUN_AFTER);
     assert_eq!(o.code, Some(0), "{}: {}", case.name, o.stderr);
     let old = stable(listing(&d.join("out")), case.volatile);
-    assert_ne!(old, new, "{}: the old and the new set must differ", case.name);
+    assert_ne!(
+        old, new,
+        "{}: the old and the new set must differ",
+        case.name
+    );
     copy_dir(&d.join("out"), &d.join("pristine"));
     (old, new)
 }
@@ -202,12 +213,25 @@ fn prepare(d: &Path, case: &Case) -> (Listing, Listing) {
 /// After an attempt: the folder holds the old set or the complete new set, and no litter.
 fn assert_old_or_new(d: &Path, case: &Case, old: &Listing, new: &Listing, o: &Outcome, what: &str) {
     assert!(!o.stderr.contains("panicked"), "{what}: {}", o.stderr);
-    assert!(litter(d).is_empty(), "{what}: litter {:?}", litter(d));
+    assert!(
+        litter(d).is_empty(),
+        "{what}: exit {:?}, litter {:?}: {}",
+        o.code,
+        litter(d),
+        o.stderr
+    );
     let now = stable(listing(&d.join("out")), case.volatile);
     if o.code == Some(0) {
-        assert_eq!(&now, new, "{what}: succeeded but the set is not the new one");
+        assert_eq!(
+            &now, new,
+            "{what}: succeeded but the set is not the new one"
+        );
     } else {
-        assert_eq!(&now, old, "{what}: exit {:?} but the old set changed: {}", o.code, o.stderr);
+        assert_eq!(
+            &now, old,
+            "{what}: exit {:?} but the old set changed: {}",
+            o.code, o.stderr
+        );
     }
 }
 
@@ -227,7 +251,11 @@ fn signals_at_random_moments_leave_the_old_set_or_the_new_one() {
         assert_eq!(o.code, Some(0), "{}", o.stderr);
         for trial in 0..4 {
             copy_dir(&d.join("pristine"), &d.join("out"));
-            let signal = if trial % 2 == 0 { libc::SIGINT } else { libc::SIGTERM };
+            let signal = if trial % 2 == 0 {
+                libc::SIGINT
+            } else {
+                libc::SIGTERM
+            };
             let child = spawn_limited(d, &os(&case.new));
             let pid = child.id() as i32;
             let start = Instant::now();
@@ -238,7 +266,11 @@ fn signals_at_random_moments_leave_the_old_set_or_the_new_one() {
                         .into_iter()
                         .flatten()
                         .flatten()
-                        .any(|e| e.file_name().to_string_lossy().starts_with(".eoir-staging-"));
+                        .any(|e| {
+                            e.file_name()
+                                .to_string_lossy()
+                                .starts_with(".eoir-staging-")
+                        });
                     if staging {
                         interrupted_while_staging += 1;
                         break;
@@ -261,7 +293,10 @@ fn signals_at_random_moments_leave_the_old_set_or_the_new_one() {
             assert_old_or_new(d, &case, &old, &new, &o, &what);
         }
     }
-    assert!(interrupted_while_staging > 0, "no signal reached a command while it staged");
+    assert!(
+        interrupted_while_staging > 0,
+        "no signal reached a command while it staged"
+    );
 }
 
 #[test]
@@ -269,7 +304,14 @@ fn characterize_simulate_leaves_nothing_when_interrupted() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let args = os(&strings(&[
-        "characterize", "--simulate", "--sensor", "multimir", "--window", "16", "-o", "sim",
+        "characterize",
+        "--simulate",
+        "--sensor",
+        "multimir",
+        "--window",
+        "16",
+        "-o",
+        "sim",
     ]));
     let t0 = Instant::now();
     let o = finish_within(spawn_limited(d, &args), "simulate", LONG_RUN_AFTER);
@@ -279,13 +321,21 @@ fn characterize_simulate_leaves_nothing_when_interrupted() {
     std::fs::remove_dir_all(d.join("sim")).unwrap();
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(3939);
     for trial in 0..4 {
-        let signal = if trial % 2 == 0 { libc::SIGINT } else { libc::SIGTERM };
+        let signal = if trial % 2 == 0 {
+            libc::SIGINT
+        } else {
+            libc::SIGTERM
+        };
         let child = spawn_limited(d, &args);
         std::thread::sleep(took.mul_f64(rng.random_range(0.05..0.9)));
         // SAFETY: signalling our own child by its pid.
         unsafe { libc::kill(child.id() as i32, signal) };
         let o = finish_within(child, "interrupted simulate", LONG_RUN_AFTER);
-        assert!(litter(d).is_empty(), "trial {trial}: litter {:?}", litter(d));
+        assert!(
+            litter(d).is_empty(),
+            "trial {trial}: litter {:?}",
+            litter(d)
+        );
         if o.code == Some(0) {
             assert_eq!(listing(&d.join("sim")), complete, "trial {trial}");
             std::fs::remove_dir_all(d.join("sim")).unwrap();
@@ -326,8 +376,12 @@ fn a_fifo_in_place_of_any_product_is_refused_and_nothing_moves() {
             let o = finish(spawn_limited(d, &os(&case.new)), case.name);
             let what = format!("{}: FIFO at {}", case.name, p.display());
             let name = p.file_name().unwrap().to_string_lossy().into_owned();
-            assert_one_error(&o, &what, &[&name]);
-            assert_eq!(listing(&d.join("out")), before, "{what}: the folder changed");
+            assert_one_error(&o, &what, &[name.as_str()]);
+            assert_eq!(
+                listing(&d.join("out")),
+                before,
+                "{what}: the folder changed"
+            );
             assert!(litter(d).is_empty(), "{what}: litter {:?}", litter(d));
         }
         let _ = old;
@@ -347,9 +401,19 @@ fn a_write_beyond_ulimit_f_is_an_error_that_leaves_the_old_set() {
             case.name,
         );
         let what = format!("{} under ulimit -f 1", case.name);
-        assert_eq!(o.code, Some(1), "{what}: exit {:?} (SIGXFSZ?): {}", o.code, o.stderr);
+        assert_eq!(
+            o.code,
+            Some(1),
+            "{what}: exit {:?} (SIGXFSZ?): {}",
+            o.code,
+            o.stderr
+        );
         assert_one_error(&o, &what, &["file too large"]);
-        assert_eq!(stable(listing(&d.join("out")), case.volatile), old, "{what}");
+        assert_eq!(
+            stable(listing(&d.join("out")), case.volatile),
+            old,
+            "{what}"
+        );
         assert!(litter(d).is_empty(), "{what}: litter {:?}", litter(d));
     }
 }
@@ -399,7 +463,11 @@ fn a_full_disk_is_an_error_that_leaves_the_old_set() {
         };
         let _ = std::fs::remove_dir_all(disk.join("out"));
         let _ = std::fs::remove_file(disk.join("filler"));
-        let o = finish_within(spawn_limited(d, &os(&retarget(&case.old))), case.name, LONG_RUN_AFTER);
+        let o = finish_within(
+            spawn_limited(d, &os(&retarget(&case.old))),
+            case.name,
+            LONG_RUN_AFTER,
+        );
         assert_eq!(o.code, Some(0), "{}: {}", case.name, o.stderr);
         let old = stable(listing(&disk.join("out")), case.volatile);
         // Fill the disk (tmpfs counts whole 4 KiB pages: not one is left for a product).
@@ -416,7 +484,11 @@ fn a_full_disk_is_an_error_that_leaves_the_old_set() {
         let o = finish(spawn_limited(d, &os(&retarget(&case.new))), case.name);
         let what = format!("{} on a full disk", case.name);
         assert_one_error(&o, &what, &["no space left"]);
-        assert_eq!(stable(listing(&disk.join("out")), case.volatile), old, "{what}");
+        assert_eq!(
+            stable(listing(&disk.join("out")), case.volatile),
+            old,
+            "{what}"
+        );
         assert!(litter(d).is_empty(), "{what}: litter {:?}", litter(d));
     }
 }
@@ -429,13 +501,19 @@ fn two_runs_into_one_folder_end_with_one_complete_set() {
     let run = |out: &str, seed: &str| -> Vec<OsString> {
         let mut v = strings(&["run", "--sensor", "multimir", "--quiet"]);
         v.extend(strings(&SMALL));
-        v.extend(strings(&["s.hdr", "-o", out, "--frames", "12", "--seed", seed]));
+        v.extend(strings(&[
+            "s.hdr", "-o", out, "--frames", "12", "--seed", seed,
+        ]));
         os(&v)
     };
     let volatile = ["report.json", "report.html"];
     let mut refs = Vec::new();
     for seed in ["1", "2"] {
-        let o = finish_within(spawn_limited(d, &run(&format!("ref{seed}"), seed)), "reference", LONG_RUN_AFTER);
+        let o = finish_within(
+            spawn_limited(d, &run(&format!("ref{seed}"), seed)),
+            "reference",
+            LONG_RUN_AFTER,
+        );
         assert_eq!(o.code, Some(0), "{}", o.stderr);
         refs.push(stable(listing(&d.join(format!("ref{seed}"))), &volatile));
     }
@@ -445,13 +523,23 @@ fn two_runs_into_one_folder_end_with_one_complete_set() {
         let b = spawn_limited(d, &run("out", "2"));
         let oa = finish_within(a, "run 1", LONG_RUN_AFTER);
         let ob = finish_within(b, "run 2", LONG_RUN_AFTER);
-        assert_eq!((oa.code, ob.code), (Some(0), Some(0)), "{}\n{}", oa.stderr, ob.stderr);
+        assert_eq!(
+            (oa.code, ob.code),
+            (Some(0), Some(0)),
+            "{}\n{}",
+            oa.stderr,
+            ob.stderr
+        );
         let now = stable(listing(&d.join("out")), &volatile);
         assert!(
             now == refs[0] || now == refs[1],
             "trial {trial}: the folder mixes the two runs ({} files)",
             now.len()
         );
-        assert!(litter(d).is_empty(), "trial {trial}: litter {:?}", litter(d));
+        assert!(
+            litter(d).is_empty(),
+            "trial {trial}: litter {:?}",
+            litter(d)
+        );
     }
 }
