@@ -311,10 +311,13 @@ impl ProductSet {
         let staging = dir.join(format!("{STAGING_PREFIX}{}-{n}", std::process::id()));
         let mut attempt = 0;
         loop {
-            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-            // Registered and created under the lock: the signal handler sees it either
-            // not at all (and nothing exists) or registered and existing.
+            // Created and registered under the lock: the signal handler sees the staging
+            // directory either not at all (and nothing exists) or registered and
+            // existing, and once it has cleaned up (keeping the lock) no output or
+            // staging directory is created again (a set staged inside another's staging
+            // directory blocks here).
             let mut list = cleanup_list();
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
             match std::fs::create_dir(&staging) {
                 Ok(()) => {
                     if let Some(top) = &created {
