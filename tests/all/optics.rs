@@ -549,10 +549,30 @@ fn measured_mtf_csv_errors_name_file_and_line() {
     // (content, expected line tag, text expected in the message, file text that must not
     // be shown: the table may be a file that is not meant to be printed)
     let cases: &[(&str, &str, &str, &str)] = &[
-        ("f,mtf\n0,1\n10,0.5\n20,abc\n", "line 4, column 2:", "expected a number", "abc"),
-        ("f,mtf\n0,1\n10,0.5,7\n", "line 3:", "expected 2 columns", "0.5,7"),
-        ("f,mtf\n0,1\nfreq,mtf\n", "line 3, column 1:", "expected a number", "freq"),
-        ("# c\nf,mtf\n\n0,1\n10,0.5\n10,0.4\n", "line 6:", "expected", "10,0.4"),
+        (
+            "f,mtf\n0,1\n10,0.5\n20,abc\n",
+            "line 4, column 2:",
+            "expected a number",
+            "abc",
+        ),
+        (
+            "f,mtf\n0,1\n10,0.5,7\n",
+            "line 3:",
+            "expected 2 columns",
+            "0.5,7",
+        ),
+        (
+            "f,mtf\n0,1\nfreq,mtf\n",
+            "line 3, column 1:",
+            "expected a number",
+            "freq",
+        ),
+        (
+            "# c\nf,mtf\n\n0,1\n10,0.5\n10,0.4\n",
+            "line 6:",
+            "expected",
+            "10,0.4",
+        ),
         ("f,mtf\n1,1\n10,0.5\n", "line 2:", "expected", "1,1"),
         ("f,mtf\n0,1\n10,1.7\n", "line 3:", "expected", "10,1.7"),
         ("f,mtf\n0,0\n10,0.5\n", "line 2:", "expected", "0,0"),
@@ -567,7 +587,10 @@ fn measured_mtf_csv_errors_name_file_and_line() {
         assert!(msg.contains(&name), "no file name in: {msg}");
         assert!(msg.contains(line_tag), "no `{line_tag}` in: {msg}");
         assert!(msg.contains(text), "no `{text}` in: {msg}");
-        assert!(!msg.contains(hidden), "the file's text `{hidden}` in: {msg}");
+        assert!(
+            !msg.contains(hidden),
+            "the file's text `{hidden}` in: {msg}"
+        );
     }
     // Missing file: an I/O error naming it.
     let missing = std::path::Path::new("/nonexistent/dir/mtf.csv");

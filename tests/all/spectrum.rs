@@ -296,7 +296,10 @@ fn csv_errors_name_file_and_line_but_never_the_text() {
     // A second non-numeric line is not a header.
     let f = write_temp("wl value\n# note\nunits um\n3 1\n4 1\n");
     let msg = Spectrum::from_csv(f.path()).unwrap_err().to_string();
-    assert!(msg.contains("line 3, column 1") && !msg.contains("units"), "{msg}");
+    assert!(
+        msg.contains("line 3, column 1") && !msg.contains("units"),
+        "{msg}"
+    );
 
     // Wrong column count.
     let f = write_temp("3 1\n4 1 7\n");
