@@ -565,7 +565,7 @@ fn measured_mtf_csv_errors_name_file_and_line() {
             "f,mtf\n0,1\nfreq,mtf\n",
             "line 3, column 1:",
             "expected a number",
-            "freq",
+            "freq,mtf",
         ),
         (
             "# c\nf,mtf\n\n0,1\n10,0.5\n10,0.4\n",
