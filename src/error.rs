@@ -158,6 +158,64 @@ pub fn escape_bounded(text: &str, max: usize) -> String {
     out
 }
 
+/// A parser's message (serde, toml, serde_json) without the text it quoted from the
+/// file: every `` `…` `` or `"…"` segment before the word "expected" is replaced by
+/// `(text not shown)`, so `invalid type: string "x", expected f64` keeps what was
+/// expected (which comes from eoir) and loses `x` (which comes from the file). With
+/// `keep_names`, a key or variant name (at most 40 characters of letters, digits, `_`,
+/// `-` and `.`) right after "unknown field", "unknown variant", "missing field" or
+/// "duplicate key" is kept: a sensor file's misspelt key is worth naming, and text
+/// that is not a file's own key structure (a password line, a hash) never has that form.
+/// The result is escaped and bounded like [`escape_bounded`]. Callers add the line and
+/// column, which tell the user where to look without showing a private file.
+pub fn redact_quoted(message: &str, max: usize, keep_names: bool) -> String {
+    const NAMED_AFTER: [&str; 5] = [
+        "unknown field ",
+        "unknown variant ",
+        "missing field ",
+        "duplicate key ",
+        "duplicate field ",
+    ];
+    let is_name = |q: &str| {
+        !q.is_empty()
+            && q.len() <= 40
+            && q.chars()
+                .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'))
+    };
+    let mut out = String::new();
+    let mut expected_seen = false;
+    let mut chars = message.chars();
+    let mut plain = String::new();
+    while let Some(c) = chars.next() {
+        if c == '`' || c == '"' {
+            let mut quoted = String::new();
+            let mut closed = false;
+            for q in chars.by_ref() {
+                if q == c {
+                    closed = true;
+                    break;
+                }
+                quoted.push(q);
+            }
+            expected_seen |= plain.contains("expected");
+            let named = keep_names && NAMED_AFTER.iter().any(|n| plain.ends_with(n));
+            out.push_str(&plain);
+            plain.clear();
+            if closed && (expected_seen || (named && is_name(&quoted))) {
+                out.push(c);
+                out.push_str(&quoted);
+                out.push(c);
+            } else {
+                out.push_str("(text not shown)");
+            }
+        } else {
+            plain.push(c);
+        }
+    }
+    out.push_str(&plain);
+    escape_bounded(&out, max)
+}
+
 /// `text` with control characters escaped (`\n`, `\u{1b}`; other Unicode such as `µ`
 /// kept) and cut at `max` characters with `…`.
 pub fn escape_controls(text: &str, max: usize) -> String {
@@ -174,4 +232,34 @@ pub fn escape_controls(text: &str, max: usize) -> String {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::redact_quoted;
+
+    /// What a parser quoted from the file goes; what eoir lists as expected stays; a
+    /// misspelt key is named only when asked and only when it has the form of a key.
+    #[test]
+    fn quoted_file_text_is_removed_and_expected_names_kept() {
+        let m = r#"invalid type: string "root:$6$SECRET", expected f64"#;
+        let r = redact_quoted(m, 200, true);
+        assert!(!r.contains("SECRET") && r.contains("expected f64"), "{r}");
+        let m = "unknown field `f_numbr`, expected one of `f_number`, `focal_length_m`";
+        assert_eq!(
+            redact_quoted(m, 200, true),
+            "unknown field `f_numbr`, expected one of `f_number`, `focal_length_m`"
+        );
+        assert_eq!(
+            redact_quoted(m, 200, false),
+            "unknown field (text not shown), expected one of `f_number`, `focal_length_m`"
+        );
+        let m = "unknown field `root:x:0:0:SECRET`, expected `a`";
+        assert!(!redact_quoted(m, 200, true).contains("SECRET"));
+        // An unclosed quote hides the rest.
+        assert_eq!(
+            redact_quoted("bad `SECRET", 200, true),
+            "bad (text not shown)"
+        );
+    }
 }

@@ -333,13 +333,14 @@ impl MeasuredMtf {
     /// not supported). `#` starts a comment (whole-line or trailing); blank lines are
     /// ignored. Before the first data row, ONE header line whose fields are all non-numeric
     /// (e.g. `freq_cy_per_mrad, mtf`) is skipped. The table rules of [`MeasuredMtf::new`]
-    /// apply. Errors name the file, the 1-based line number and the line's text.
+    /// apply. Errors name the file, the 1-based line number and what was expected, never
+    /// the line's text (the path may point at a file that is not meant to be shown).
     pub fn from_csv(path: &Path) -> Result<Self> {
         let text = crate::input::read_text(path)?;
         let mut freq = Vec::new();
         let mut mtf = Vec::new();
-        // (line number, line text) of every data row, for error messages.
-        let mut rows: Vec<(usize, String)> = Vec::new();
+        // The line number of every data row, for error messages.
+        let mut rows: Vec<usize> = Vec::new();
         let mut header_seen = false;
         for (idx, raw) in text.lines().enumerate() {
             let line_no = idx + 1;
@@ -365,9 +366,8 @@ impl MeasuredMtf {
                 return Err(Error::format(
                     path,
                     format!(
-                        "line {line_no}: `{}`: expected 2 columns (frequency in cycles/mrad, \
+                        "line {line_no}: expected 2 columns (frequency in cycles/mrad, \
                          MTF), found {}",
-                        crate::limits::escape_token(raw.trim()),
                         fields.len()
                     ),
                 ));
@@ -376,21 +376,15 @@ impl MeasuredMtf {
                 (Some(f), Some(m)) => {
                     freq.push(f);
                     mtf.push(m);
-                    rows.push((line_no, crate::limits::escape_token(raw.trim())));
+                    rows.push(line_no);
                 }
                 _ => {
-                    let bad = if parsed[0].is_none() {
-                        fields[0]
-                    } else {
-                        fields[1]
-                    };
+                    let column = if parsed[0].is_none() { 1 } else { 2 };
                     return Err(Error::format(
                         path,
                         format!(
-                            "line {line_no}: `{}`: `{}` is not a number (expected \
-                             frequency in cycles/mrad and MTF)",
-                            crate::limits::escape_token(raw.trim()),
-                            crate::limits::escape_token(bad)
+                            "line {line_no}, column {column}: expected a number (frequency \
+                             in cycles/mrad, then MTF)"
                         ),
                     ));
                 }
@@ -398,8 +392,8 @@ impl MeasuredMtf {
         }
         if let Err(fault) = check_table(&freq, &mtf) {
             let message = match fault.row.and_then(|i| rows.get(i)) {
-                Some((line_no, line)) => format!(
-                    "line {line_no}: `{line}`: {} = {}: expected {}",
+                Some(line_no) => format!(
+                    "line {line_no}: {} = {}: expected {}",
                     fault.field, fault.value, fault.expected
                 ),
                 None => format!(

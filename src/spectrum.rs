@@ -288,9 +288,8 @@ impl Spectrum {
                 return Err(Error::format(
                     path,
                     format!(
-                        "line {line_no}: expected 2 columns (wavelength µm, value), found {} in \"{}\"",
-                        fields.len(),
-                        crate::limits::escape_token(raw_line.trim())
+                        "line {line_no}: expected 2 columns (wavelength µm, value) separated by commas, semicolons or spaces, found {}",
+                        fields.len()
                     ),
                 ));
             }
@@ -300,9 +299,8 @@ impl Spectrum {
                     Error::format(
                         path,
                         format!(
-                            "line {line_no}: cannot read {name} \"{}\" as a number (line: \"{}\")",
-                            crate::limits::escape_token(field),
-                            crate::limits::escape_token(raw_line.trim())
+                            "line {line_no}, column {}: expected the {name} as a number (the file's text is not shown)",
+                            k + 1
                         ),
                     )
                 })?;
@@ -311,10 +309,7 @@ impl Spectrum {
             if !(w.is_finite() && w > 0.0) {
                 return Err(Error::format(
                     path,
-                    format!(
-                        "line {line_no}: wavelength \"{}\" must be a finite number of µm > 0",
-                        fields[0]
-                    ),
+                    format!("line {line_no}: wavelength {w}: expected a finite number of µm > 0"),
                 ));
             }
             if let Some((prev_line, prev_w)) = prev {
@@ -322,8 +317,7 @@ impl Spectrum {
                     return Err(Error::format(
                         path,
                         format!(
-                            "line {line_no}: wavelength \"{}\" µm is not greater than {prev_w} µm on line {prev_line}; wavelengths must strictly increase",
-                            fields[0]
+                            "line {line_no}: wavelength {w} µm is not greater than {prev_w} µm on line {prev_line}; wavelengths must strictly increase"
                         ),
                     ));
                 }
@@ -331,10 +325,7 @@ impl Spectrum {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(Error::format(
                     path,
-                    format!(
-                        "line {line_no}: value \"{}\" must be a finite number >= 0",
-                        fields[1]
-                    ),
+                    format!("line {line_no}: value {v}: expected a finite number >= 0"),
                 ));
             }
             prev = Some((line_no, w));

@@ -27,8 +27,19 @@ const MAP_BINS: usize = 50;
 /// the directory is created).
 ///
 /// Errors: I/O failures, naming the file.
+///
+/// The four files are one product set ([`crate::io::output::ProductSet`]): an error or
+/// a signal leaves an earlier characterisation in `out` whole, never a mix.
 pub fn write_outputs(c: &Characterization, out: &Path, title: &str) -> Result<()> {
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let set = crate::io::output::ProductSet::begin(out)?;
+    write_into(c, set.staging_dir(), title).map_err(|e| set.name_final(e))?;
+    set.commit()?;
+    Ok(())
+}
+
+/// [`write_outputs`] into the directory `out` itself (the product set's staging place).
+fn write_into(c: &Characterization, out: &Path, title: &str) -> Result<()> {
+    crate::io::output::create_dir_all_guarded(out)?;
     let mut json = serde_json::to_string_pretty(c)
         .map_err(|e| Error::OutOfRange(format!("cannot encode characterization.json: {e}")))?;
     json.push('\n');

@@ -69,7 +69,7 @@ fn number(path: &Path, line: usize, field: &str, text: &str) -> Result<f64> {
     let v: f64 = text.replace(',', ".").parse().map_err(|_| {
         Error::format(
             path,
-            format!("line {line}: {field} `{text}` is not a number"),
+            format!("line {line}: {field}: expected a number (the file's text is not shown)"),
         )
     })?;
     if !(v.is_finite() && v >= 0.0) {
@@ -98,8 +98,7 @@ impl Descriptor {
                 continue;
             }
             let parts: Vec<&str> = t.split_whitespace().collect();
-            let bad =
-                |what: &str| Error::format(path, format!("line {line}: `{t}` should be `{what}`"));
+            let bad = |what: &str| Error::format(path, format!("line {line}: expected `{what}`"));
             match parts[0] {
                 "v" if parts.len() == 2 => version = Some(parts[1].to_string()),
                 "v" => return Err(bad("v version")),
@@ -117,7 +116,7 @@ impl Descriptor {
                         s.parse::<usize>().ok().filter(|v| *v > 0).ok_or_else(|| {
                             Error::format(
                                 path,
-                                format!("line {line}: {f} `{s}` must be a positive integer"),
+                                format!("line {line}: {f}: expected a positive integer"),
                             )
                         })
                     };
@@ -170,11 +169,11 @@ impl Descriptor {
                     };
                     s.images.push(parts[1].to_string());
                 }
-                other => {
+                _ => {
                     return Err(Error::format(
                         path,
                         format!(
-                        "line {line}: unknown command `{other}` (valid: v, n, d, b, i, # comment)"
+                        "line {line}: unknown command; expected one of v, n, d, b, i, # comment"
                     ),
                     ))
                 }

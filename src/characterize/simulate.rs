@@ -41,6 +41,7 @@ use serde::{Deserialize, Serialize};
 use super::descriptor::{Descriptor, Series};
 use crate::detector::{DetectorInstance, DetectorModel};
 use crate::error::{Error, Result};
+use crate::io::output::ProductSet;
 use crate::io::{atomic_write, raster, write_all};
 use crate::sensor::{Sensor, SensorConfig};
 
@@ -169,8 +170,8 @@ fn window_config(
 
 /// Writes a simulated acquisition set for `sensor` into `dir` (see the module
 /// documentation): the images under `dir/ptc`, `dir/dark`, `dir/spatial`,
-/// `dir/descriptor.txt` and `dir/truth.json`. The set is built in a sibling temporary
-/// directory and renamed into place, so a failure leaves nothing behind.
+/// `dir/descriptor.txt` and `dir/truth.json`. The set is one
+/// [`crate::io::output::ProductSet`]: a failure or a signal leaves nothing behind.
 ///
 /// Errors: an invalid sensor, a window of fewer than 16 pixels a side, `dir` existing
 /// and not empty, or an I/O failure.
@@ -234,17 +235,13 @@ pub fn simulate(sensor: &SensorConfig, dir: &Path, options: &SimulateOptions) ->
         ));
     }
 
-    let tmp = dir.with_file_name(format!(
-        ".{}.partial-{}",
-        dir.file_name()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default(),
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&tmp);
+    // One product set: staged inside `dir`, moved into place only when complete, and
+    // removed (with `dir` if this call created it) on an error or SIGINT/SIGTERM.
+    let set = ProductSet::begin(dir)?;
+    let tmp = set.staging_dir().to_path_buf();
     let result = (|| -> Result<Truth> {
         for sub in ["ptc", "dark", "spatial"] {
-            std::fs::create_dir_all(tmp.join(sub)).map_err(|e| Error::io(tmp.join(sub), e))?;
+            crate::io::output::create_dir_all_guarded(&tmp.join(sub))?;
         }
         let mut series: Vec<Series> = Vec::new();
         let mut exposure: u64 = 0;
@@ -374,22 +371,9 @@ pub fn simulate(sensor: &SensorConfig, dir: &Path, options: &SimulateOptions) ->
         atomic_write(&tpath, |w| write_all(w, json.as_bytes(), &tpath))?;
         Ok(truth)
     })();
-    match result {
-        Ok(truth) => {
-            if dir.exists() {
-                std::fs::remove_dir(dir).map_err(|e| Error::io(dir, e))?;
-            }
-            std::fs::rename(&tmp, dir).map_err(|e| {
-                let _ = std::fs::remove_dir_all(&tmp);
-                Error::io(dir, e)
-            })?;
-            Ok(truth)
-        }
-        Err(e) => {
-            let _ = std::fs::remove_dir_all(&tmp);
-            Err(e)
-        }
-    }
+    let truth = result.map_err(|e| set.name_final(e))?;
+    set.commit()?;
+    Ok(truth)
 }
 
 /// Exposure times are written as whole nanoseconds.

@@ -93,43 +93,38 @@ pub fn edge_mtf(args: EdgeMtfArgs) -> Result<()> {
         "sensor": sensor.as_ref().map(|s| s.name.clone()),
         "oversampling": eoir::processing::edge_mtf::OVERSAMPLING,
     });
-    std::fs::create_dir_all(&args.output)
-        .with_context(|| format!("creating {}", args.output.display()))?;
-    let csv_path = args.output.join("edge_mtf.csv");
-    eoir::io::atomic_write(&csv_path, |w| {
-        eoir::io::write_all(w, csv.as_bytes(), &csv_path)
-    })?;
-    let png_path = args.output.join("edge_mtf.png");
+    // The three products as one set: the old set stays whole until the new one is.
+    let set = eoir::io::output::ProductSet::begin(&args.output)?;
+    set.write_bytes("edge_mtf.csv", csv.as_bytes())?;
     let title = format!(
         "slanted-edge MTF ({:.1}° edge, MTF50 {})",
         m.angle_deg,
         m.mtf50_cy_per_px
             .map_or("not reached".to_string(), |f| format!("{f:.3} cy/px"))
     );
-    plot::write_line_plot(
-        &png_path,
-        &LinePlot {
-            title: &title,
-            x_label: "spatial frequency along the edge normal (cycles/pixel)",
-            y_label: "MTF",
-            series: vec![Series {
-                label: "measured",
-                x: &m.freq_cy_per_px,
-                y: &m.mtf,
-            }],
-            markers: vec![Marker {
-                label: "Nyquist",
-                x: 0.5,
-            }],
-            y_range: Some((0.0, m.mtf.iter().copied().fold(1.1, f64::max))),
-            size_px: (900, 600),
-        },
-    )?;
-    let json_path = args.output.join("edge_mtf.json");
-    let text = serde_json::to_string_pretty(&report)?;
-    eoir::io::atomic_write(&json_path, |w| {
-        eoir::io::write_all(w, text.as_bytes(), &json_path)
+    set.write("edge_mtf.png", |png_path| {
+        plot::write_line_plot(
+            png_path,
+            &LinePlot {
+                title: &title,
+                x_label: "spatial frequency along the edge normal (cycles/pixel)",
+                y_label: "MTF",
+                series: vec![Series {
+                    label: "measured",
+                    x: &m.freq_cy_per_px,
+                    y: &m.mtf,
+                }],
+                markers: vec![Marker {
+                    label: "Nyquist",
+                    x: 0.5,
+                }],
+                y_range: Some((0.0, m.mtf.iter().copied().fold(1.1, f64::max))),
+                size_px: (900, 600),
+            },
+        )
     })?;
+    set.write_json("edge_mtf.json", &report)?;
+    let written = set.commit()?;
     println!(
         "edge at {:.2}° ({}), MTF50 {}",
         m.angle_deg,
@@ -141,7 +136,7 @@ pub fn edge_mtf(args: EdgeMtfArgs) -> Result<()> {
         m.mtf50_cy_per_px
             .map_or("not reached".to_string(), |f| format!("{f:.4} cy/px"))
     );
-    for p in [csv_path, png_path, json_path] {
+    for p in written {
         println!("wrote {}", p.display());
     }
     Ok(())

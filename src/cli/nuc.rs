@@ -131,8 +131,20 @@ fn fit(a: FitArgs) -> Result<()> {
             a.degree
         );
     }
-    if let Some(v) = t.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
-        bail!("--temperatures-k: {v} is not a temperature; give finite values > 0 K");
+    // The blackbody range the calibration searches (the coldest and hottest sources a
+    // laboratory sets): 1e30 K or 0.001 K is a typing error, not a blackbody.
+    let (t_lo, t_hi) = eoir::calibration::levels::SEARCH_RANGE_K;
+    if let Some(v) = t
+        .iter()
+        .find(|v| !(v.is_finite() && (t_lo..=t_hi).contains(*v)))
+    {
+        // Scientific notation for the absurd ones (1e30, not thirty-one digits).
+        let shown = if (1e-3..1e6).contains(&v.abs()) {
+            format!("{v}")
+        } else {
+            format!("{v:e}")
+        };
+        bail!("--temperatures-k: {shown} K is not a blackbody temperature; give values from {t_lo} to {t_hi} K");
     }
     for (i, x) in t.iter().enumerate() {
         if t[..i].contains(x) {
@@ -269,7 +281,20 @@ fn apply(a: ApplyArgs) -> Result<()> {
         );
     }
     let corrected = coeffs.apply(img.view())?;
-    let bad = coeffs.bad_pixel_map();
+    // The calibration's bad pixels, and every pixel the correction leaves non-finite (a
+    // NaN coefficient of a rank-deficient pixel): all replaced, all counted.
+    let mut mask = coeffs.bad_pixel_map().mask().clone();
+    let from_map = mask.iter().filter(|b| **b).count();
+    let mut non_finite = 0usize;
+    ndarray::Zip::from(&mut mask)
+        .and(&corrected)
+        .for_each(|m, v| {
+            if !*m && !v.is_finite() {
+                *m = true;
+                non_finite += 1;
+            }
+        });
+    let bad = bad_pixels::BadPixelMap::from_mask(mask);
     let corrected = if bad.count() > 0 {
         bad_pixels::replace(corrected.view(), &bad)?
     } else {
@@ -280,10 +305,20 @@ fn apply(a: ApplyArgs) -> Result<()> {
         raster::write_png_u16(&a.output, u.view())?;
     } else {
         let f = corrected.mapv(|v| v as f32);
+        eoir::io::output::check_finite(
+            &a.output,
+            f.iter().map(|&v| v as f64),
+            "the corrected image must fit 32-bit floats; check the NUC's coefficients against the image",
+        )?;
         raster::write_tiff_f32(&a.output, f.view())?;
     }
+    if non_finite > 0 {
+        eprintln!(
+            "warning: {non_finite} pixel(s) came out of the correction non-finite (NaN coefficients of rank-deficient pixels) and were replaced like bad pixels"
+        );
+    }
     println!(
-        "corrected {} ({} bad pixel(s) replaced); wrote {}",
+        "corrected {} ({} bad pixel(s) replaced: {from_map} from the calibration's map, {non_finite} non-finite after correction); wrote {}",
         a.image.display(),
         bad.count(),
         a.output.display()

@@ -8,6 +8,7 @@ use ndarray::Array2;
 use serde_json::json;
 
 use eoir::display;
+use eoir::io::output::ProductSet;
 use eoir::io::raster;
 use eoir::processing::wiener::{
     self, replace_invalid_pixels, NoiseRule, SensorTransfer, IMPULSE_K_SIGMA,
@@ -254,21 +255,24 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
         "input_stats": stats(&image),
         "output_stats": stats(&restored),
     });
-    // Everything is computed: only now touch the output directory.
-    std::fs::create_dir_all(&args.output)
-        .with_context(|| format!("creating {}", args.output.display()))?;
-    let tiff = args.output.join("restored.tiff");
-    raster::write_tiff_f32(&tiff, restored.mapv(|v| v as f32).view())?;
-    let png = args.output.join("restored.png");
+    // Everything is computed: only now touch the output directory, all three products
+    // as one set (the old set stays whole until the new one is complete).
+    let stored = restored.mapv(|v| v as f32);
+    let set = ProductSet::begin(&args.output)?;
+    eoir::io::output::check_finite(
+        &set.final_path(&set.path("restored.tiff")),
+        stored.iter().map(|&v| v as f64),
+        "restored.tiff stores 32-bit floats (|value| <= 3.4e38): the input holds values too large for the restoration to be stored",
+    )?;
+    set.write("restored.tiff", |p| {
+        raster::write_tiff_f32(p, stored.view())
+    })?;
     let grey = display_stretch(&restored);
     let samples: Vec<u8> = grey.iter().copied().collect();
     let bytes = display::encode_png(cols, rows, 1, &samples)?;
-    display::write_png_bytes(&png, &bytes)?;
-    let json_path = args.output.join("restore.json");
-    let text = serde_json::to_string_pretty(&report)?;
-    eoir::io::atomic_write(&json_path, |w| {
-        eoir::io::write_all(w, text.as_bytes(), &json_path)
-    })?;
+    set.write("restored.png", |p| display::write_png_bytes(p, &bytes))?;
+    set.write_json("restore.json", &report)?;
+    let written = set.commit()?;
     println!(
         "{}: Wiener ({}{}), MTF at Nyquist {:.3} (x) {:.3} (y), {} pixels replaced",
         sensor.name,
@@ -282,7 +286,7 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
         mtf_nyquist_y,
         replaced
     );
-    for p in [tiff, png, json_path] {
+    for p in written {
         println!("wrote {}", p.display());
     }
     Ok(())

@@ -275,7 +275,8 @@ pub fn run(args: RunArgs) -> Result<()> {
             &read,
             args.quiet,
             args.require_temperature,
-        )?;
+        )
+        .map_err(|e| name_final(&set, e))?;
         print_written(&set.commit()?, args.quiet);
         return Ok(());
     }
@@ -353,6 +354,22 @@ pub fn run(args: RunArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// `e` naming the final path of a product where it named its staging place (an I/O
+/// error while staging, e.g. `File too large` under `ulimit -f`).
+/// An error with context added on top is left as it is (downcasting would drop it).
+fn name_final(set: &ProductSet, e: anyhow::Error) -> anyhow::Error {
+    let bare = e
+        .downcast_ref::<eoir::error::Error>()
+        .is_some_and(|err| err.to_string() == e.to_string());
+    if !bare {
+        return e;
+    }
+    match e.downcast::<eoir::error::Error>() {
+        Ok(err) => set.name_final(err).into(),
+        Err(e) => e,
+    }
 }
 
 /// `eoir demo`: the thermal scene, sized to the sensor by [`sizing::covering`] (as

@@ -206,13 +206,12 @@ impl Header {
                 }
                 Some((_, l)) if l.trim().is_empty() => continue,
                 Some((_, l)) if l.trim().eq_ignore_ascii_case("envi") => break,
-                Some((i, l)) => {
+                Some((i, _)) => {
                     return Err(Error::format(
                         path,
                         format!(
-                            "not an ENVI header: line {} is `{}` but the first line must be `ENVI`",
-                            i + 1,
-                            l.trim()
+                            "not an ENVI header: line {} is not `ENVI`; expected `ENVI` as the first line (the file's text is not shown)",
+                            i + 1
                         ),
                     ))
                 }
@@ -226,10 +225,9 @@ impl Header {
             }
             let Some((k, v)) = l.split_once('=') else {
                 warnings.push(format!(
-                    "{}: line {} ignored (no `key = value`): `{}`",
+                    "{}: line {} ignored: expected `key = value`",
                     path.display(),
-                    i + 1,
-                    crate::limits::escape_token(l)
+                    i + 1
                 ));
                 continue;
             };

@@ -25,6 +25,7 @@ use crate::error::{Error, Result};
 use crate::scene::{Cube, CubeMeta};
 
 pub(crate) mod binary;
+pub mod dir_lock;
 pub mod envi;
 pub mod exr;
 #[cfg(feature = "hdf5")]
@@ -223,18 +224,8 @@ pub fn write_cube_set(path: &Path, cube: &Cube) -> Result<Vec<PathBuf>> {
         #[cfg(not(feature = "hdf5"))]
         CubeFormat::Hdf5 => Err(hdf5_missing(path)),
     }
-    .map_err(|e| match e {
-        // Name the file the user asked for, not its staging place.
-        Error::Io { path, source } => Error::Io {
-            path: set.final_path(&path),
-            source,
-        },
-        Error::Format { path, message } => Error::Format {
-            path: set.final_path(&path),
-            message,
-        },
-        other => other,
-    })?;
+    // Name the file the user asked for, not its staging place.
+    .map_err(|e| set.name_final(e))?;
     // Every file lands beside `path`: name them as the caller spelled `path`.
     Ok(set
         .commit()?

@@ -12,12 +12,19 @@
 //!   directory `.eoir-staging-PID-N` inside the output directory. Only when all of them
 //!   succeeded are the targets checked (all of them, before anything moves) and the files
 //!   renamed into place; the staging directory is then removed. On any error the staging
-//!   directory is removed and the output directory is left exactly as it was. Products
-//!   of an earlier run whose names the new run does not write (e.g. frames beyond the new
-//!   frame count) are left alone.
+//!   directory is removed and the output directory is left exactly as it was (or
+//!   removed again, if empty, when the set created it). Products of an earlier run whose
+//!   names the new run does not write (e.g. frames beyond the new frame count) are left
+//!   alone. Every command that writes more than one file uses it; see [`ProductSet`] for
+//!   the API a new command uses.
+//! - **One writer at a time**: [`ProductSet::commit`] holds an exclusive `flock` on the
+//!   output directory ([`super::dir_lock`]) while it checks and moves, so two processes
+//!   writing into one directory end with one complete set from one of them.
 //! - **Signals**: [`install_signal_handler`] (the CLI calls it first thing) catches
-//!   SIGINT and SIGTERM on a dedicated thread, removes every registered staging directory
-//!   and temporary file, and exits with status 128 + signal. The move into place holds
+//!   SIGINT and SIGTERM on a dedicated thread, removes every registered staging directory,
+//!   temporary file and (empty) output directory a set created, and exits with status
+//!   128 + signal. It also ignores SIGXFSZ, so a write beyond `ulimit -f` fails with
+//!   EFBIG like any I/O error and the set is cleaned up instead of the process dying. The move into place holds
 //!   the same lock, so a signal during the move waits for it to finish: the directory
 //!   then holds either the complete old set or the complete new set.
 //!
@@ -40,8 +47,19 @@ use std::sync::{Mutex, MutexGuard};
 
 use crate::error::{Error, Result};
 
-/// Staging directories and temporary files to remove if the process is interrupted.
-static CLEANUP: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+/// What the signal handler removes before exiting.
+#[derive(Debug, Clone, PartialEq)]
+enum Cleanup {
+    /// A staging directory or temporary file, removed with everything in it.
+    Remove(PathBuf),
+    /// Output directories a [`ProductSet`] created: `dir` and its parents up to `top`,
+    /// each removed only if empty (nothing anybody else put there is touched).
+    EmptyDirs { dir: PathBuf, top: PathBuf },
+}
+
+/// Staging directories, temporary files and created directories to remove if the
+/// process is interrupted.
+static CLEANUP: Mutex<Vec<Cleanup>> = Mutex::new(Vec::new());
 
 /// Counter making staging-directory names unique within the process.
 static STAGING_SEQ: AtomicUsize = AtomicUsize::new(0);
@@ -52,21 +70,46 @@ pub const STAGING_PREFIX: &str = ".eoir-staging-";
 /// Marker contained in every temporary file name.
 pub const TEMP_MARKER: &str = ".eoir-tmp-";
 
-fn cleanup_list() -> MutexGuard<'static, Vec<PathBuf>> {
+fn cleanup_list() -> MutexGuard<'static, Vec<Cleanup>> {
     CLEANUP.lock().unwrap_or_else(|p| p.into_inner())
 }
 
 /// Registers `path` (a temporary file or staging directory) for removal on SIGINT/SIGTERM.
 pub fn register_cleanup(path: &Path) {
-    cleanup_list().push(path.to_path_buf());
+    cleanup_list().push(Cleanup::Remove(path.to_path_buf()));
 }
 
 /// Removes `path` from the cleanup list (it was renamed into place or removed).
 pub fn unregister_cleanup(path: &Path) {
     let mut l = cleanup_list();
-    if let Some(i) = l.iter().rposition(|p| p == path) {
-        l.swap_remove(i);
+    unregister_in(&mut l, &Cleanup::Remove(path.to_path_buf()));
+}
+
+fn unregister_in(list: &mut Vec<Cleanup>, entry: &Cleanup) {
+    if let Some(i) = list.iter().rposition(|p| p == entry) {
+        list.remove(i);
     }
+}
+
+/// Removes `dir` and its parents up to and including `top` while they are empty,
+/// innermost first (`remove_dir` only removes empty directories).
+fn remove_empty_dirs(dir: &Path, top: &Path) {
+    let mut d = Some(dir);
+    while let Some(p) = d {
+        if std::fs::remove_dir(p).is_err() || p == top {
+            break;
+        }
+        d = p.parent();
+    }
+}
+
+/// `std::fs::create_dir_all` for directories inside a staging directory, holding the
+/// clean-up lock: once the signal handler has removed the staging directory (and kept
+/// the lock), a writer still running cannot create it again and leave it behind — it
+/// blocks here until the process exits, like a writer registering its next file.
+pub fn create_dir_all_guarded(path: &Path) -> Result<()> {
+    let _list = cleanup_list();
+    std::fs::create_dir_all(path).map_err(|e| Error::io(path, e))
 }
 
 /// Passes of [`remove_any`] over a directory that another thread may still be adding a
@@ -95,10 +138,14 @@ fn remove_any(path: &Path) {
 }
 
 /// What the signal handler does before exiting: removes every registered path, newest
-/// first, holding (and keeping) the lock `list` so that nothing new is registered.
-fn remove_registered(list: &[PathBuf]) {
+/// first (a staging directory before the output directory created for it), holding (and
+/// keeping) the lock `list` so that nothing new is registered.
+fn remove_registered(list: &[Cleanup]) {
     for p in list.iter().rev() {
-        remove_any(p);
+        match p {
+            Cleanup::Remove(p) => remove_any(p),
+            Cleanup::EmptyDirs { dir, top } => remove_empty_dirs(dir, top),
+        }
     }
 }
 
@@ -110,6 +157,11 @@ pub fn install_signal_handler() -> Result<()> {
     static INSTALLED: std::sync::Once = std::sync::Once::new();
     let mut result = Ok(());
     INSTALLED.call_once(|| {
+        // A write beyond `ulimit -f` then fails with EFBIG, an ordinary I/O error that
+        // the writer reports and the product set cleans up, instead of SIGXFSZ killing
+        // the process with its staging directory and temporary files left behind.
+        // SAFETY: setting a signal's disposition to "ignore" has no handler to run.
+        unsafe { libc::signal(libc::SIGXFSZ, libc::SIG_IGN) };
         match signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) {
             Ok(mut signals) => {
                 let spawned = std::thread::Builder::new()
@@ -180,7 +232,45 @@ pub fn check_output_target(path: &Path) -> Result<()> {
 /// A set of products written together: into a staging directory first, moved into the
 /// output directory by [`ProductSet::commit`] only when all were written, removed (with
 /// the output directory untouched, or removed again if this set created it) when dropped
-/// uncommitted.
+/// uncommitted. Every command that writes more than one file writes them through one.
+///
+/// # Using it
+///
+/// ```no_run
+/// use std::path::Path;
+/// use eoir::io::output::ProductSet;
+///
+/// # fn main() -> eoir::error::Result<()> {
+/// # let frame = ndarray::Array2::<f32>::zeros((4, 4));
+/// let set = ProductSet::begin(Path::new("out"))?;       // creates out/ if needed
+/// // Any writer that takes a path: it is given the staged path, and errors name the
+/// // final one (`out/frames/frame-0000.tiff`). Subdirectories are created as needed.
+/// set.write("frames/frame-0000.tiff", |p| {
+///     eoir::io::raster::write_tiff_f32(p, frame.view())
+/// })?;
+/// set.write_bytes("los.csv", b"frame,x_px,y_px\n0,0.0,0.0\n")?;
+/// set.write_json("summary.json", &serde_json::json!({ "frames": 1 }))?;
+/// // Nothing in out/ has changed until here; now every product moves into place.
+/// for p in set.commit()? {
+///     println!("wrote {}", p.display());
+/// }
+/// # Ok(()) }
+/// ```
+///
+/// - Write everything first and call [`ProductSet::commit`] last: a `?` that returns
+///   early drops the set, which removes what was staged and leaves `out/` as it was.
+/// - Check values before writing them ([`check_finite`]) so a bad result is an error,
+///   not a product.
+/// - Writers that want a directory rather than a file name can write under
+///   [`ProductSet::staging_dir`] directly; [`ProductSet::name_final`] turns their errors
+///   into errors naming the final paths.
+/// - SIGINT/SIGTERM at any moment (after [`install_signal_handler`]) leaves the old set
+///   or the complete new one; a full disk, `ulimit -f` (SIGXFSZ is ignored, so the write
+///   fails with EFBIG) or a special file in place of a product is an error before
+///   anything moves.
+/// - [`ProductSet::commit`] holds a cross-process lock on the output directory
+///   ([`super::dir_lock::DirLock`]) while it moves the set: two processes writing into one
+///   directory end with one complete set from one of them.
 #[derive(Debug)]
 pub struct ProductSet {
     dir: PathBuf,
@@ -190,8 +280,14 @@ pub struct ProductSet {
     committed: bool,
 }
 
+/// Attempts at creating the staging directory when the output directory disappears in
+/// between (another process's uncommitted set removed it, empty, as its own creation).
+const BEGIN_ATTEMPTS: usize = 5;
+
 impl ProductSet {
     /// Creates the output directory if needed and a fresh staging directory inside it.
+    ///
+    /// Errors: `dir` exists and is not a directory, or it cannot be created.
     pub fn begin(dir: &Path) -> Result<Self> {
         if let Ok(m) = std::fs::metadata(dir) {
             if !m.is_dir() {
@@ -211,29 +307,40 @@ impl ProductSet {
             created = Some(d.to_path_buf());
             a = d.parent();
         }
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let n = STAGING_SEQ.fetch_add(1, Ordering::Relaxed);
         let staging = dir.join(format!("{STAGING_PREFIX}{}-{n}", std::process::id()));
-        // Registered and created under the lock: the signal handler sees it either not
-        // at all (and nothing exists) or registered and existing.
-        let created_staging = {
+        let mut attempt = 0;
+        loop {
+            // Created and registered under the lock: the signal handler sees the staging
+            // directory either not at all (and nothing exists) or registered and
+            // existing, and once it has cleaned up (keeping the lock) no output or
+            // staging directory is created again (a set staged inside another's staging
+            // directory blocks here).
             let mut list = cleanup_list();
-            let r = std::fs::create_dir(&staging);
-            if r.is_ok() {
-                list.push(staging.clone());
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+            match std::fs::create_dir(&staging) {
+                Ok(()) => {
+                    if let Some(top) = &created {
+                        list.push(Cleanup::EmptyDirs {
+                            dir: dir.to_path_buf(),
+                            top: top.clone(),
+                        });
+                    }
+                    list.push(Cleanup::Remove(staging.clone()));
+                    break;
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound && attempt < BEGIN_ATTEMPTS => {
+                    attempt += 1;
+                }
+                Err(e) => return Err(Error::io(&staging, e)),
             }
-            r
-        };
-        let set = ProductSet {
+        }
+        Ok(ProductSet {
             dir: dir.to_path_buf(),
             staging,
             created,
             committed: false,
-        };
-        if let Err(e) = created_staging {
-            return Err(Error::io(&set.staging, e));
-        }
-        Ok(set)
+        })
     }
 
     /// Where the products are to be written (same relative names as in the output).
@@ -246,6 +353,12 @@ impl ProductSet {
         &self.dir
     }
 
+    /// The staged path of the product `name` (a relative path such as `a.tiff` or
+    /// `frames/0001.tiff`). Parent directories are not created (see [`ProductSet::write`]).
+    pub fn path(&self, name: impl AsRef<Path>) -> PathBuf {
+        self.staging.join(name)
+    }
+
     /// The final path of a product written at `staged` inside the staging directory.
     pub fn final_path(&self, staged: &Path) -> PathBuf {
         match staged.strip_prefix(&self.staging) {
@@ -254,13 +367,87 @@ impl ProductSet {
         }
     }
 
+    /// `e` with a staged path replaced by the final path it stands for, so an error names
+    /// the file the user asked for, not its hidden staging place.
+    pub fn name_final(&self, e: Error) -> Error {
+        match e {
+            Error::Io { path, source } => Error::Io {
+                path: self.final_path(&path),
+                source,
+            },
+            Error::Format { path, message } => Error::Format {
+                path: self.final_path(&path),
+                message,
+            },
+            other => other,
+        }
+    }
+
+    /// Writes the product `name` (relative, e.g. `frames/frame-0001.tiff`) by calling
+    /// `write` with its staged path; creates the parent directories it needs. Returns the
+    /// final path. Errors (from `write` or creating directories) name the final path.
+    pub fn write<F>(&self, name: impl AsRef<Path>, write: F) -> Result<PathBuf>
+    where
+        F: FnOnce(&Path) -> Result<()>,
+    {
+        let name = name.as_ref();
+        if name.is_absolute()
+            || name
+                .components()
+                .any(|c| !matches!(c, std::path::Component::Normal(_)))
+        {
+            return Err(Error::param(
+                "product name",
+                name.display(),
+                "a relative path without `..` (the product set's own file names)",
+            ));
+        }
+        let staged = self.staging.join(name);
+        if let Some(parent) = staged.parent() {
+            create_dir_all_guarded(parent).map_err(|e| self.name_final(e))?;
+        }
+        write(&staged).map_err(|e| self.name_final(e))?;
+        Ok(self.dir.join(name))
+    }
+
+    /// Writes the product `name` with the bytes `bytes` ([`ProductSet::write`]).
+    pub fn write_bytes(&self, name: impl AsRef<Path>, bytes: &[u8]) -> Result<PathBuf> {
+        self.write(name, |p| {
+            super::atomic_write(p, |w| super::write_all(w, bytes, p))
+        })
+    }
+
+    /// Writes the product `name` as pretty-printed JSON with a final newline.
+    pub fn write_json<T: serde::Serialize>(
+        &self,
+        name: impl AsRef<Path>,
+        value: &T,
+    ) -> Result<PathBuf> {
+        let name = name.as_ref();
+        let mut text = serde_json::to_string_pretty(value).map_err(|e| {
+            Error::format(self.dir.join(name), format!("cannot encode the JSON: {e}"))
+        })?;
+        text.push('\n');
+        self.write_bytes(name, text.as_bytes())
+    }
+
     /// Moves every staged file into place and returns their final paths (sorted). All
     /// targets are checked first ([`check_output_target`]; a staged subdirectory needs a
-    /// directory or nothing at its place), so a refusal moves nothing.
+    /// directory or nothing at its place), so a refusal moves nothing. The checks and the
+    /// move hold the output directory's cross-process lock
+    /// ([`super::dir_lock::DirLock`]); a process that finds it held says so on stderr
+    /// and waits for it.
     pub fn commit(mut self) -> Result<Vec<PathBuf>> {
         let mut files = Vec::new();
         let mut dirs = Vec::new();
         collect(&self.staging, Path::new(""), &mut files, &mut dirs)?;
+        let dir = self.dir.clone();
+        let _lock = super::dir_lock::DirLock::acquire(&self.dir, || {
+            eprintln!(
+                "eoir: another process is moving its products into {}; waiting for it",
+                dir.display()
+            )
+        })?;
         for d in &dirs {
             let target = self.dir.join(d);
             if let Ok(m) = std::fs::symlink_metadata(&target) {
@@ -297,8 +484,15 @@ impl ProductSet {
                 }
             }
         }
-        if let Some(i) = list.iter().rposition(|p| *p == self.staging) {
-            list.swap_remove(i);
+        unregister_in(&mut list, &Cleanup::Remove(self.staging.clone()));
+        if let Some(top) = &self.created {
+            unregister_in(
+                &mut list,
+                &Cleanup::EmptyDirs {
+                    dir: self.dir.clone(),
+                    top: top.clone(),
+                },
+            );
         }
         let _ = std::fs::remove_dir_all(&self.staging);
         self.committed = true;
@@ -314,19 +508,45 @@ impl Drop for ProductSet {
     fn drop(&mut self) {
         if !self.committed {
             let _ = std::fs::remove_dir_all(&self.staging);
-            unregister_cleanup(&self.staging);
+            let mut list = cleanup_list();
+            unregister_in(&mut list, &Cleanup::Remove(self.staging.clone()));
             // Directories this set created, innermost first; `remove_dir` only removes
             // empty ones, so nothing anybody else put there is touched.
             if let Some(top) = &self.created {
-                let mut d = Some(self.dir.as_path());
-                while let Some(p) = d {
-                    if std::fs::remove_dir(p).is_err() || p == top.as_path() {
-                        break;
-                    }
-                    d = p.parent();
-                }
+                remove_empty_dirs(&self.dir, top);
+                unregister_in(
+                    &mut list,
+                    &Cleanup::EmptyDirs {
+                        dir: self.dir.clone(),
+                        top: top.clone(),
+                    },
+                );
             }
         }
+    }
+}
+
+/// Checks that every value of a product is finite before it is written: `values` are
+/// the values as they will be stored (e.g. after conversion to f32, where 3.5e38 becomes
+/// +inf). Errors name `path` (the final product), the number of non-finite values, the
+/// first one's index and what `what` says is valid.
+pub fn check_finite(path: &Path, values: impl IntoIterator<Item = f64>, what: &str) -> Result<()> {
+    let mut count = 0usize;
+    let mut first = None;
+    for (i, v) in values.into_iter().enumerate() {
+        if !v.is_finite() {
+            count += 1;
+            first.get_or_insert((i, v));
+        }
+    }
+    match first {
+        None => Ok(()),
+        Some((i, v)) => Err(Error::format(
+            path,
+            format!(
+                "{count} value(s) would be written non-finite (the first, {v}, at index {i}); nothing was written. {what}"
+            ),
+        )),
     }
 }
 
@@ -386,7 +606,7 @@ mod tests {
                 let _ = std::fs::write(&late, b"hdf5");
             });
             barrier.wait();
-            remove_registered(std::slice::from_ref(&staging));
+            remove_registered(&[Cleanup::Remove(staging.clone())]);
             writer.join().unwrap();
             assert!(
                 !staging.exists(),

@@ -37,7 +37,8 @@ impl RunOutput {
     /// with the `hdf5` feature `products.h5` holding every product. A sequence writes
     /// `frame_NNNN_` prefixed DN and electron files. Returns the paths written.
     pub fn write(&self, dir: &Path) -> Result<Vec<PathBuf>> {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        // Guarded: a signal's clean-up that removed the staging directory is not undone.
+        crate::io::output::create_dir_all_guarded(dir)?;
         let mut written = Vec::new();
         let single = self.frames.len() == 1;
         for (i, f) in self.frames.iter().enumerate() {

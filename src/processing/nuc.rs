@@ -30,20 +30,26 @@
 //! ```json
 //! {
 //!   "format": "eoir-nuc",
-//!   "version": 1,
+//!   "version": 2,
 //!   "degree": 1,
 //!   "signal_centre": 2051.37,
 //!   "signal_scale": 1024.5,
 //!   "rows": 480,
 //!   "cols": 640,
 //!   "rank_deficient": [[12, 40]],
-//!   "bad_pixels": [[3, 7]]
+//!   "bad_pixels": [[3, 7]],
+//!   "coefficients_fnv1a64": "5f0e2c0a91d4b7e3"
 //! }
 //! ```
 //!
 //! `z = (x − signal_centre) / signal_scale`; `rank_deficient` lists `[row, col]` of the
 //! pixels described above; the optional `bad_pixels` those flagged by the calibration
-//! ([`NucCoefficients::set_bad_pixels`]), to be replaced after correction. Unknown keys are errors. Both files are written atomically.
+//! ([`NucCoefficients::set_bad_pixels`]), to be replaced after correction;
+//! `coefficients_fnv1a64` (version 2) the FNV-1a checksum of the coefficients, so a
+//! sidecar is never used with another array. Unknown keys are errors. Both files are
+//! written as one product set (moved into place together), and
+//! `signal_centre`/`signal_scale` are checked against [`MAX_SIGNAL_CENTRE`] and
+//! [`SIGNAL_SCALE_RANGE`] on writing and reading.
 
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
@@ -56,7 +62,8 @@ use serde::{Deserialize, Serialize};
 use super::bad_pixels::BadPixelMap;
 use super::{check_frame, check_shape, mean_variance};
 use crate::error::{Error, Result};
-use crate::io::{atomic_write, write_all};
+use crate::io::atomic_write;
+use crate::io::output::ProductSet;
 
 /// A Vandermonde column zᵏ whose part orthogonal to the lower powers is shorter than this
 /// fraction of max(‖zᵏ‖, √L) (z spans about [−1, 1]) is taken as linearly dependent.
@@ -95,10 +102,56 @@ struct NucSidecar {
     rank_deficient: Vec<[usize; 2]>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     bad_pixels: Vec<[usize; 2]>,
+    /// [`content_hash`] of the coefficient array, in hexadecimal (version 2 on): ties the
+    /// sidecar to the one `.npy` it was written with.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    coefficients_fnv1a64: Option<String>,
 }
 
 const FORMAT_NAME: &str = "eoir-nuc";
-const FORMAT_VERSION: u32 = 1;
+/// Version 2 adds `coefficients_fnv1a64`; version 1 sidecars (no hash) are still read.
+const FORMAT_VERSION: u32 = 2;
+
+/// The largest |signal_centre| accepted, DN: far beyond any recorded signal (16-bit
+/// DN, or f32 radiance in any unit eoir writes), small enough that `x − c` stays exact
+/// to about 1e-4 of a DN-sized step and `z` finite.
+pub const MAX_SIGNAL_CENTRE: f64 = 1e12;
+/// The accepted range of signal_scale, DN: with |x − c| ≤ 2·[`MAX_SIGNAL_CENTRE`] and
+/// scale ≥ 1e-9, |z| ≤ 2e21 and z^[`MAX_DEGREE`] ≤ 3e170, finite in f64; a subnormal
+/// scale (1e-320) would make every z infinite.
+pub const SIGNAL_SCALE_RANGE: (f64, f64) = (1e-9, 1e12);
+
+/// FNV-1a (64 bit) of the coefficients' little-endian f64 bytes in array order: a
+/// checksum that tells a coefficient file from another, not a cryptographic digest.
+fn content_hash(a: &Array3<f64>) -> String {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    for v in a.iter() {
+        for b in v.to_le_bytes() {
+            h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+    format!("{h:016x}")
+}
+
+/// Checks the normalisation constants (`side` names the sidecar in errors).
+fn check_normalisation(side: &Path, centre: f64, scale: f64) -> Result<()> {
+    let (lo, hi) = SIGNAL_SCALE_RANGE;
+    if !(centre.is_finite() && centre.abs() <= MAX_SIGNAL_CENTRE) {
+        return Err(Error::format(
+            side,
+            format!(
+                "signal_centre = {centre:e}: expected a finite number of DN with |value| <= {MAX_SIGNAL_CENTRE:e}"
+            ),
+        ));
+    }
+    if !(scale.is_finite() && (lo..=hi).contains(&scale)) {
+        return Err(Error::format(
+            side,
+            format!("signal_scale = {scale:e}: expected a number of DN from {lo:e} to {hi:e}"),
+        ));
+    }
+    Ok(())
+}
 
 /// Rounds to 9 significant digits, so the value is written and re-read exactly by any
 /// JSON parser (the shortest decimal form then has at most 9 digits).
@@ -346,12 +399,17 @@ impl NucCoefficients {
         Ok(out)
     }
 
-    /// Writes `<stem>.npy` and `<stem>.json` (format in the module documentation), each
-    /// atomically; if the sidecar cannot be written the new array file is removed.
+    /// Writes `<stem>.npy` and `<stem>.json` (format in the module documentation) as one
+    /// [`ProductSet`]: both are staged and moved into place together, so an error or a
+    /// signal leaves the earlier pair (if any) whole, never a new array beside an old
+    /// sidecar. The sidecar also carries the array's checksum, which
+    /// [`load`](Self::load) checks.
     ///
-    /// Errors: a path not ending in `.npy`, or an I/O failure (naming the file).
+    /// Errors: a path not ending in `.npy`, normalisation constants outside the valid
+    /// range, or an I/O failure (naming the file).
     pub fn save(&self, path: &Path) -> Result<()> {
         let side = sidecar_path(path)?;
+        check_normalisation(&side, self.signal_centre, self.signal_scale)?;
         let (rows, cols) = self.dim();
         let sc = NucSidecar {
             format: FORMAT_NAME.to_string(),
@@ -363,20 +421,26 @@ impl NucCoefficients {
             cols,
             rank_deficient: self.rank_deficient.iter().map(|&(i, j)| [i, j]).collect(),
             bad_pixels: self.bad_pixels.iter().map(|&(i, j)| [i, j]).collect(),
+            coefficients_fnv1a64: Some(content_hash(&self.coefficients)),
         };
-        let mut json = serde_json::to_string_pretty(&sc)
-            .map_err(|e| Error::format(&side, format!("cannot encode the NUC sidecar: {e}")))?;
-        json.push('\n');
-        atomic_write(path, |w| {
-            self.coefficients
-                .write_npy(&mut *w)
-                .map_err(|e| Error::format(path, format!("cannot write the NPY array: {e}")))
+        let (Some(npy_name), Some(side_name)) = (path.file_name(), side.file_name()) else {
+            return Err(Error::format(path, "names no file to write the NUC to"));
+        };
+        let dir = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        let set = ProductSet::begin(dir)?;
+        set.write(npy_name, |p| {
+            atomic_write(p, |w| {
+                self.coefficients
+                    .write_npy(&mut *w)
+                    .map_err(|e| Error::format(p, format!("cannot write the NPY array: {e}")))
+            })
         })?;
-        let res = atomic_write(&side, |w| write_all(w, json.as_bytes(), &side));
-        if res.is_err() {
-            let _ = std::fs::remove_file(path);
-        }
-        res
+        set.write_json(side_name, &sc)?;
+        set.commit()?;
+        Ok(())
     }
 
     /// Reads coefficients written by [`save`](Self::save), checking the sidecar (format,
@@ -388,16 +452,39 @@ impl NucCoefficients {
     pub fn load(path: &Path) -> Result<Self> {
         let side = sidecar_path(path)?;
         let text = crate::input::read_text(&side)?;
-        let sc: NucSidecar = serde_json::from_str(&text)
-            .map_err(|e| Error::format(&side, format!("invalid NUC sidecar: {e}")))?;
-        if sc.format != FORMAT_NAME || sc.version != FORMAT_VERSION {
+        let sc: NucSidecar = serde_json::from_str(&text).map_err(|e| {
+            Error::format(
+                &side,
+                format!(
+                    "line {}, column {}: invalid NUC sidecar: {}",
+                    e.line(),
+                    e.column(),
+                    crate::error::redact_quoted(&e.to_string(), 200, false)
+                ),
+            )
+        })?;
+        if sc.format != FORMAT_NAME || !(1..=FORMAT_VERSION).contains(&sc.version) {
             return Err(Error::format(
                 &side,
                 format!(
-                    "format `{}` version {} is not supported; expected `{FORMAT_NAME}` version {FORMAT_VERSION}",
-                    sc.format, sc.version
+                    "format/version not supported (the file's text is not shown); expected `\"format\": \"{FORMAT_NAME}\"` with version 1 to {FORMAT_VERSION}"
                 ),
             ));
+        }
+        match (&sc.coefficients_fnv1a64, sc.version) {
+            (None, v) if v >= 2 => {
+                return Err(Error::format(
+                    &side,
+                    "coefficients_fnv1a64 is missing; a version-2 sidecar names the checksum of its .npy",
+                ))
+            }
+            (Some(_), 1) => {
+                return Err(Error::format(
+                    &side,
+                    "coefficients_fnv1a64 is a version-2 key; expected version 2",
+                ))
+            }
+            _ => {}
         }
         if sc.degree > MAX_DEGREE {
             return Err(Error::format(
@@ -405,15 +492,7 @@ impl NucCoefficients {
                 format!("degree {} is above the maximum {MAX_DEGREE}", sc.degree),
             ));
         }
-        if !(sc.signal_centre.is_finite() && sc.signal_scale.is_finite() && sc.signal_scale > 0.0) {
-            return Err(Error::format(
-                &side,
-                format!(
-                    "signal_centre = {} must be finite and signal_scale = {} finite and > 0",
-                    sc.signal_centre, sc.signal_scale
-                ),
-            ));
-        }
+        check_normalisation(&side, sc.signal_centre, sc.signal_scale)?;
         let coefficients = read_coefficients(path, [sc.degree + 1, sc.rows, sc.cols])?;
         let coefficients = coefficients.map_err(|e| {
             Error::format(
@@ -448,8 +527,37 @@ impl NucCoefficients {
             }
             Ok(out)
         };
+        if let Some(expected) = &sc.coefficients_fnv1a64 {
+            let found = content_hash(&coefficients);
+            if !found.eq_ignore_ascii_case(expected) {
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "the coefficients do not belong to {}: their checksum is {found}, the sidecar's coefficients_fnv1a64 names another array; use the .npy and .json written together by one `eoir nuc fit`",
+                        side.display()
+                    ),
+                ));
+            }
+        }
         let rank_deficient = positions(sc.rank_deficient, "rank_deficient")?;
         let bad_pixels = positions(sc.bad_pixels, "bad_pixels")?;
+        // A non-finite coefficient is written by `fit` only for a pixel it lists as
+        // rank-deficient (a non-finite signal); anywhere else the file is damaged.
+        let mut listed = Array2::from_elem((sc.rows, sc.cols), false);
+        for &(i, j) in &rank_deficient {
+            listed[[i, j]] = true;
+        }
+        if let Some(((k, i, j), v)) = coefficients
+            .indexed_iter()
+            .find(|((_, i, j), v)| !v.is_finite() && !listed[[*i, *j]])
+        {
+            return Err(Error::format(
+                path,
+                format!(
+                    "coefficient {k} of pixel [{i}, {j}] is {v}; expected finite coefficients (only pixels listed as rank_deficient may hold NaN)"
+                ),
+            ));
+        }
         Ok(NucCoefficients {
             degree: sc.degree,
             signal_centre: sc.signal_centre,

@@ -390,7 +390,7 @@ impl SensorConfig {
                         format!(
                             "after --set {}: {}",
                             overrides.join(" --set "),
-                            crate::limits::escape_bounded(e.message().trim(), 160)
+                            crate::error::redact_quoted(e.message().trim(), 160, true)
                         ),
                     )
                 })?;
@@ -415,7 +415,7 @@ impl SensorConfig {
             toml::Value::Table(table)
                 .try_into()
                 .map_err(|e: toml::de::Error| {
-                    let msg = crate::limits::escape_bounded(e.message().trim(), 160);
+                    let msg = crate::error::redact_quoted(e.message().trim(), 160, true);
                     if overrides.is_empty() {
                         Error::format(source, msg)
                     } else {
@@ -750,18 +750,29 @@ fn prefix_field(section: &str, e: Error) -> Error {
     }
 }
 
-/// Turns a TOML error into one line: `source: line L (`text`): message`.
+/// Turns a TOML error into one line: `source: line L, column C: message`. Neither the
+/// line's text nor anything the parser quoted from it is shown ([`crate::error::redact_quoted`]):
+/// `--sensor` may name a file that is not meant to be printed (`/etc/passwd`).
 pub(crate) fn toml_error(source: &str, text: &str, e: &toml::de::Error) -> Error {
-    let msg = crate::limits::escape_bounded(e.message().trim(), 160);
+    let msg = crate::error::redact_quoted(e.message().trim(), 160, true);
     match e.span() {
         Some(span) => {
-            let line_no = text[..span.start.min(text.len())].matches('\n').count() + 1;
-            let line = text.lines().nth(line_no - 1).unwrap_or("").trim();
-            let line = crate::limits::escape_token(line);
-            Error::format(source, format!("line {line_no} (`{line}`): {msg}"))
+            let start = floor_char_boundary(text, span.start.min(text.len()));
+            let before = &text[..start];
+            let line_no = before.matches('\n').count() + 1;
+            let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+            Error::format(source, format!("line {line_no}, column {column}: {msg}"))
         }
         None => Error::format(source, msg),
     }
+}
+
+/// The largest char boundary of `text` at or below `i`.
+fn floor_char_boundary(text: &str, mut i: usize) -> usize {
+    while !text.is_char_boundary(i) {
+        i -= 1;
+    }
+    i
 }
 
 /// Applies one override `a.b.c=value` to a parsed TOML table. The value is parsed as a

@@ -2,7 +2,9 @@
 //! library's own writers plus hostile seeds from `tests/fuzz_corpus/`, mutated with a fixed
 //! seed (byte flips, insertions, deletions, chunk duplication, splices of "interesting"
 //! tokens such as huge numbers, NaN, deep nesting) and fed to the ENVI, NPY, TOML sensor,
-//! spectral EXR and TIFF readers. Every case must return `Ok` or a typed `Err`; a panic is
+//! spectral EXR and TIFF readers, the NUC coefficient reader (sidecar and array), the
+//! EMVA 1288 descriptor (with its images) and `restore`'s image inputs (16-bit PNG,
+//! TIFF, single-channel OpenEXR). Every case must return `Ok` or a typed `Err`; a panic is
 //! caught with `catch_unwind` and fails the test printing the input.
 //!
 //! `cargo test --release` runs a bounded number of cases per reader (default 300);
@@ -348,5 +350,145 @@ fn fuzz_tiff() {
         let a = io::raster::read_tiff_u16(path).is_ok();
         let b = io::raster::read_tiff_f32(path).is_ok();
         a || b
+    });
+}
+
+/// A NUC fitted on two 6 × 5 levels, saved as `NAME.npy` + `NAME.json`; `version1`
+/// drops the checksum (a version-1 sidecar), so a mutated array reaches the array reader
+/// instead of stopping at the checksum.
+fn nuc_pair(dir: &Path, name: &str, version1: bool) -> (Vec<u8>, Vec<u8>) {
+    use eoir::processing::nuc::NucCoefficients;
+    let lo = ndarray::Array2::from_shape_fn((6, 5), |(r, c)| 1000.0 + (r * 5 + c) as f64);
+    let hi = lo.mapv(|v| 2.0 * v);
+    let levels = [
+        (lo.mean().unwrap(), lo.view()),
+        (hi.mean().unwrap(), hi.view()),
+    ];
+    let coeffs = NucCoefficients::fit(&levels, 1).unwrap();
+    let npy = dir.join(format!("{name}.npy"));
+    coeffs.save(&npy).unwrap();
+    let mut json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(npy.with_extension("json")).unwrap()).unwrap();
+    if version1 {
+        let m = json.as_object_mut().unwrap();
+        m.remove("coefficients_fnv1a64");
+        m.insert("version".into(), 1.into());
+    }
+    (
+        serde_json::to_vec_pretty(&json).unwrap(),
+        std::fs::read(&npy).unwrap(),
+    )
+}
+
+#[test]
+fn fuzz_nuc_sidecar_and_coefficients() {
+    let dir = tempfile::tempdir().unwrap();
+    // `a`: the sidecar mutated beside its own array; `b`: the array mutated beside a
+    // version-1 sidecar (no checksum to stop at).
+    let (a_json, a_npy) = nuc_pair(dir.path(), "a", false);
+    let (b_json, b_npy) = nuc_pair(dir.path(), "b", true);
+    let mut seeds = vec![
+        ("a.json".to_string(), a_json.clone()),
+        ("b.npy".to_string(), b_npy.clone()),
+    ];
+    seeds.extend(corpus("nuc"));
+    campaign("NUC sidecar and coefficients", &seeds, |path, _| {
+        let is_json = path.extension().is_some_and(|e| e == "json");
+        let partner = if is_json {
+            (path.with_extension("npy"), &a_npy)
+        } else {
+            (path.with_extension("json"), &b_json)
+        };
+        std::fs::write(&partner.0, partner.1).unwrap();
+        let _ = (&a_json, &b_npy);
+        match eoir::processing::nuc::NucCoefficients::load(&path.with_extension("npy")) {
+            Ok(c) => {
+                // What `nuc apply` does with them.
+                let frame = ndarray::Array2::from_elem(c.dim(), 1500.0);
+                c.apply(frame.view()).is_ok()
+            }
+            Err(_) => false,
+        }
+    });
+}
+
+#[test]
+fn fuzz_emva_descriptor() {
+    let set = tempfile::tempdir().unwrap();
+    let sensor = eoir::sensor::presets::load("multimir", &[], &[]).unwrap();
+    let sim = set.path().join("set");
+    eoir::characterize::simulate(
+        &sensor,
+        &sim,
+        &eoir::characterize::SimulateOptions {
+            seed: 1,
+            window: 16,
+        },
+    )
+    .unwrap();
+    let mut seeds = vec![(
+        "descriptor.txt".to_string(),
+        std::fs::read(sim.join("descriptor.txt")).unwrap(),
+    )];
+    seeds.extend(corpus("emva"));
+    campaign("EMVA 1288 descriptor", &seeds, |path, d| {
+        // The descriptor's images beside it, as the simulation wrote them.
+        for sub in ["ptc", "dark", "spatial"] {
+            if !d.join(sub).exists() {
+                std::fs::create_dir(d.join(sub)).unwrap();
+                for e in std::fs::read_dir(sim.join(sub)).unwrap() {
+                    let e = e.unwrap();
+                    std::fs::copy(e.path(), d.join(sub).join(e.file_name())).unwrap();
+                }
+            }
+        }
+        eoir::characterize::characterize(path).is_ok()
+    });
+}
+
+#[test]
+fn fuzz_restore_image_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let img = ndarray::Array2::from_shape_fn((7, 9), |(r, c)| (r * 9 + c) as u16 * 300);
+    let png = dir.path().join("dn.png");
+    io::raster::write_png_u16(&png, img.view()).unwrap();
+    let exr = dir.path().join("e.exr");
+    io::raster::write_exr_f32(&exr, img.mapv(|v| v as f32 * 0.25).view(), "electrons").unwrap();
+    let tif = dir.path().join("f32.tiff");
+    io::raster::write_tiff_f32(&tif, img.mapv(|v| v as f32 * 0.5).view()).unwrap();
+    let mut seeds = vec![
+        ("dn.png".to_string(), std::fs::read(&png).unwrap()),
+        ("e.exr".to_string(), std::fs::read(&exr).unwrap()),
+        ("f32.tiff".to_string(), std::fs::read(&tif).unwrap()),
+    ];
+    seeds.extend(corpus("restore"));
+    // The calls `eoir restore` makes on its input: the size from the header, then the
+    // decoder for the extension (the single-channel EXR read as `cli::restore` does).
+    campaign("restore image inputs", &seeds, |path, _| {
+        if io::raster::image_dimensions(path).is_err() {
+            return false;
+        }
+        match path.extension().and_then(|e| e.to_str()) {
+            Some("png") => io::raster::read_png_u16(path).is_ok(),
+            Some("exr") => {
+                use exr::prelude::{read, ReadChannels, ReadLayers};
+                let Ok(f) = io::input::open_regular(path) else {
+                    return false;
+                };
+                let mut f = std::io::BufReader::new(f);
+                if io::exr::check_exr_image_size(path, &mut f).is_err() {
+                    return false;
+                }
+                read()
+                    .no_deep_data()
+                    .largest_resolution_level()
+                    .all_channels()
+                    .first_valid_layer()
+                    .all_attributes()
+                    .from_buffered(f)
+                    .is_ok()
+            }
+            _ => io::raster::read_tiff_u16(path).is_ok() || io::raster::read_tiff_f32(path).is_ok(),
+        }
     });
 }

@@ -5,281 +5,13 @@
 
 use std::collections::BTreeMap;
 use std::ffi::OsString;
-use std::io::Read;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// Address-space limit for each child, KiB (4 GiB).
-const AS_LIMIT_KIB: u64 = 4 << 20;
-/// A hostile case still running after this long is a hang. Every case prints its time to
-/// the captured test output (`--nocapture` shows it): the slowest, `temperature` on a
-/// TIFF bomb (it builds the sensor and its calibration before reading the input), took
-/// 0.9 s with all hostile tests running in parallel on a 2-core machine at load 3.6
-/// (2026-11-23); every refusal before any real work took < 0.1 s. 5 s leaves a 5× margin
-/// for a slower, busier CI machine and still means "a few seconds" as issue 11 asks.
-const HANG_AFTER: Duration = Duration::from_secs(5);
-/// The SIGINT test's deliberately long fixture runs (150 frames, 7.6–8.1 s measured on the
-/// same machine) are work, not hostile cases: they get their own, looser limit.
-const LONG_RUN_AFTER: Duration = Duration::from_secs(120);
-
-#[derive(Debug)]
-struct Outcome {
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-}
-
-fn spawn_limited(dir: &Path, args: &[OsString]) -> Child {
-    Command::new("bash")
-        .arg("-c")
-        .arg(format!("ulimit -v {AS_LIMIT_KIB} && exec \"$0\" \"$@\""))
-        .arg(env!("CARGO_BIN_EXE_eoir"))
-        .args(args)
-        .current_dir(dir)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawning eoir")
-}
-
-fn finish(child: Child, what: &str) -> Outcome {
-    finish_within(child, what, HANG_AFTER)
-}
-
-fn finish_within(mut child: Child, what: &str, limit: Duration) -> Outcome {
-    let mut out = child.stdout.take().unwrap();
-    let mut err = child.stderr.take().unwrap();
-    let t_out = std::thread::spawn(move || {
-        let mut s = Vec::new();
-        let _ = out.read_to_end(&mut s);
-        s
-    });
-    let t_err = std::thread::spawn(move || {
-        let mut s = Vec::new();
-        let _ = err.read_to_end(&mut s);
-        s
-    });
-    let start = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if start.elapsed() > limit {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("{what}: hangs (still running after {limit:?})");
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    };
-    eprintln!(
-        "hostile case took {:.3} s: {what}",
-        start.elapsed().as_secs_f64()
-    );
-    Outcome {
-        code: status.code(),
-        stdout: String::from_utf8_lossy(&t_out.join().unwrap()).into_owned(),
-        stderr: String::from_utf8_lossy(&t_err.join().unwrap()).into_owned(),
-    }
-}
-
-fn eoir(dir: &Path, args: &[&str]) -> Outcome {
-    let args: Vec<OsString> = args.iter().map(OsString::from).collect();
-    finish(spawn_limited(dir, &args), &args_text(&args))
-}
-
-fn args_text(args: &[OsString]) -> String {
-    args.iter()
-        .map(|a| a.to_string_lossy().into_owned())
-        .collect::<Vec<_>>()
-        .join(" ")
-}
-
-/// Every file system entry under `dir`: relative path → (kind, size, content hash for
-/// regular files up to 1 MiB, modification time for larger ones). Symlinks are not followed.
-fn listing(dir: &Path) -> BTreeMap<PathBuf, (String, u64, u64)> {
-    let mut out = BTreeMap::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let e = e.unwrap();
-            let m = std::fs::symlink_metadata(e.path()).unwrap();
-            let rel = e.path().strip_prefix(dir).unwrap().to_path_buf();
-            let t = m.file_type();
-            let (kind, hash) = if t.is_symlink() {
-                (
-                    format!("link→{}", std::fs::read_link(e.path()).unwrap().display()),
-                    0,
-                )
-            } else if t.is_dir() {
-                stack.push(e.path());
-                ("dir".into(), 0)
-            } else if t.is_file() && m.len() <= 1 << 20 {
-                ("file".into(), fnv(&std::fs::read(e.path()).unwrap()))
-            } else if t.is_file() {
-                // Large (sparse) fixtures: size and modification time stand for content.
-                let mtime = m.modified().unwrap();
-                let ns = mtime
-                    .duration_since(std::time::UNIX_EPOCH)
-                    .unwrap()
-                    .as_nanos();
-                ("file".into(), ns as u64)
-            } else {
-                (format!("special {:?}", t), 0)
-            };
-            out.insert(rel, (kind, if t.is_file() { m.len() } else { 0 }, hash));
-        }
-    }
-    out
-}
-
-/// FNV-1a, to compare file contents.
-fn fnv(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
-        (h ^ *b as u64).wrapping_mul(0x0100_0000_01b3)
-    })
-}
-
-/// Asserts one clear error: exit status 1 (not a panic's 101 or a signal), exactly one
-/// `error:` line on stderr containing every `needles` (case-insensitive), nothing that
-/// looks like a panic or an abort, no control characters.
-fn assert_one_error(o: &Outcome, what: &str, needles: &[&str]) {
-    assert_eq!(o.code, Some(1), "{what}: exit {:?}\n{}", o.code, o.stderr);
-    let errors: Vec<&str> = o
-        .stderr
-        .lines()
-        .filter(|l| l.starts_with("error:"))
-        .collect();
-    assert_eq!(errors.len(), 1, "{what}: stderr:\n{}", o.stderr);
-    for l in o.stderr.lines() {
-        assert!(
-            l.starts_with("error:") || l.starts_with("warning:"),
-            "{what}: unexpected stderr line {l:?}"
-        );
-    }
-    assert!(!o.stderr.contains("panicked"), "{what}: {}", o.stderr);
-    assert!(
-        !o.stderr.chars().any(|c| c.is_control() && c != '\n'),
-        "{what}: control characters in {:?}",
-        o.stderr
-    );
-    let lower = errors[0].to_lowercase();
-    for n in needles {
-        assert!(
-            lower.contains(&n.to_lowercase()),
-            "{what}: error does not mention {n:?}: {}",
-            errors[0]
-        );
-    }
-}
-
-/// Runs `args` in `dir` expecting one error and the directory unchanged.
-fn refused(dir: &Path, args: &[&str], needles: &[&str]) -> Outcome {
-    let before = listing(dir);
-    let o = eoir(dir, args);
-    let what = args.join(" ");
-    assert_one_error(&o, &what, needles);
-    assert_eq!(listing(dir), before, "{what}: the directory changed");
-    o
-}
-
-/// The run arguments for the small fixture scene (16 × 16, multimir band).
-fn run_args<'a>(input: &'a str, out: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
-    let mut v = vec![
-        "run",
-        "--sensor",
-        "multimir",
-        "--option",
-        "sequence=still",
-        "--quiet",
-        "--set",
-        "detector.rows=16",
-        "--set",
-        "detector.cols=16",
-        input,
-        "-o",
-        out,
-    ];
-    v.extend_from_slice(extra);
-    v
-}
-
-/// Writes the fixture scene `s.hdr` (+ `s.img`) into `dir`: a 300 K blackbody, 16 × 16,
-/// 4.4–5.4 µm in 11 bands, field of view matching a 16 × 16 multimir crop.
-fn fixture_scene(dir: &Path) {
-    let fov = (16.0 * 0.24e-3f64).to_degrees().to_string();
-    let o = eoir(
-        dir,
-        &[
-            "scene",
-            "blackbody",
-            "--rows",
-            "16",
-            "--cols",
-            "16",
-            "--lo-um",
-            "4.4",
-            "--hi-um",
-            "5.4",
-            "--bands",
-            "11",
-            "--fov-deg",
-            &fov,
-            "-o",
-            "s.hdr",
-        ],
-    );
-    assert_eq!(o.code, Some(0), "{}", o.stderr);
-}
-
-/// A hand-written ENVI header (f32, BSQ) with the given size and FOV 0.23°.
-fn envi_header(samples: u64, lines: u64, bands: usize) -> String {
-    let wl: Vec<String> = (0..bands)
-        .map(|i| format!("{:.3}", 4.4 + i as f64 * 0.1))
-        .collect();
-    format!(
-        "ENVI\nsamples = {samples}\nlines = {lines}\nbands = {bands}\nheader offset = 0\nfile type = ENVI Standard\ndata type = 4\ninterleave = bsq\nbyte order = 0\nwavelength units = Micrometers\nwavelength = {{{}}}\neoir radiance units = W m-2 sr-1 um-1\neoir fov deg = {{0.23, 0.23}}\n",
-        wl.join(", ")
-    )
-}
-
-/// `eoir characterize --simulate` (MultimIR, 16-pixel window) into `dir/set`, which must
-/// succeed: the acquisition set the EMVA cases then damage.
-fn simulate_emva_set(dir: &Path) {
-    let args = [
-        "characterize",
-        "--simulate",
-        "--sensor",
-        "multimir",
-        "--window",
-        "16",
-        "-o",
-        "set",
-    ];
-    let o = eoir(dir, &args);
-    assert_eq!(o.code, Some(0), "{}", o.stderr);
-}
-
-fn mkfifo(path: &Path) {
-    let c = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).unwrap();
-    // SAFETY: plain libc call with a valid NUL-terminated path.
-    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o644) }, 0, "mkfifo");
-}
-
-/// The resolved multimir sensor file with section `[name]` replaced by `body`.
-fn sensor_with(dir: &Path, name: &str, body: &str) -> String {
-    let o = eoir(dir, &["sensors", "show", "multimir"]);
-    assert_eq!(o.code, Some(0), "{}", o.stderr);
-    let text = o.stdout;
-    let head = format!("[{name}]\n");
-    let start = text.find(&head).unwrap_or_else(|| panic!("no [{name}]"));
-    let after = start + head.len();
-    let end = text[after..]
-        .find("\n[")
-        .map_or(text.len(), |i| after + i + 1);
-    format!("{}{head}{body}\n{}", &text[..start], &text[end..])
-}
+use super::common::{
+    assert_one_error, envi_header, eoir, finish_within, fixture_nuc, fixture_scene, fnv, listing,
+    mkfifo, refused, run_args, sensor_with, simulate_emva_set, spawn_limited, LONG_RUN_AFTER,
+};
 
 #[test]
 fn huge_sizes_from_the_command_line_are_refused_before_allocating() {
@@ -951,30 +683,6 @@ fn sparse_tiff(path: &Path, width: u32, height: u32) {
         .unwrap();
 }
 
-/// Two 8 × 8 PNG frames at different levels and a NUC fitted from them (`nuc.json` +
-/// `nuc.npy`), for the `nuc` and `characterize` cases.
-fn fixture_nuc(d: &Path) {
-    use ndarray::Array2;
-    let lo = Array2::<u16>::from_shape_fn((8, 8), |(r, c)| 1000 + (r * 8 + c) as u16);
-    let hi = lo.mapv(|v| v * 2);
-    eoir::io::raster::write_png_u16(&d.join("lo.png"), lo.view()).unwrap();
-    eoir::io::raster::write_png_u16(&d.join("hi.png"), hi.view()).unwrap();
-    let o = eoir(
-        d,
-        &[
-            "nuc",
-            "fit",
-            "lo.png",
-            "hi.png",
-            "--temperatures-k",
-            "290,310",
-            "-o",
-            "nuc.json",
-        ],
-    );
-    assert_eq!(o.code, Some(0), "{}", o.stderr);
-}
-
 #[test]
 fn images_tables_and_descriptors_of_every_command_are_bounded_before_allocating() {
     let dir = tempfile::tempdir().unwrap();
@@ -1333,4 +1041,242 @@ fn nan_is_an_error_in_every_band_the_sensor_sees_and_unread_outside_its_response
     header("inside");
     std::fs::write(d.join("inside.img"), data(5)).unwrap();
     refused(d, &run_args("inside.hdr", "out2", &[]), &["inside", "NaN"]);
+}
+
+/// Issue 39: a private file reached through a sensor file, `--sensor`, a NUC sidecar,
+/// an EMVA descriptor or an ENVI header is never shown — no 6-character piece of its
+/// marker appears in any message — while the message still names the file and the line.
+#[test]
+fn no_piece_of_a_private_file_reaches_any_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let marker = "S3CR3T-MARKER-9f0d27c1";
+    let shadow = format!(
+        "root:$6${marker}$hash:19000:0:99999:7:::\n{marker},{marker}\ntoken = \"{marker}\"\n"
+    );
+    std::fs::write(d.join("private"), &shadow).unwrap();
+    let leaks = |o: &super::common::Outcome| -> Option<String> {
+        let text = format!("{}{}", o.stdout, o.stderr);
+        (0..=marker.len() - 6)
+            .map(|i| &marker[i..i + 6])
+            .find(|piece| text.contains(piece))
+            .map(|p| format!("`{p}` in {text}"))
+    };
+    let check = |args: &[&str], needles: &[&str]| {
+        let o = refused(d, args, needles);
+        assert!(leaks(&o).is_none(), "{args:?}: {}", leaks(&o).unwrap());
+    };
+    // --sensor naming the private file itself (the `/etc/passwd` case).
+    check(&["mtf", "--sensor", "private"], &["private", "line 1"]);
+    // A sensor file whose filter table is the private file.
+    let toml = sensor_with(d, "filter", "kind = \"csv\"\npath = \"private\"");
+    std::fs::write(d.join("s.toml"), toml).unwrap();
+    check(&["mtf", "--sensor", "s.toml"], &["private", "line 2"]);
+    // A sensor value holding the private text as a string where a number belongs.
+    let toml = sensor_with(
+        d,
+        "filter",
+        &format!("kind = \"top_hat\"\nlo_um = \"{marker}\"\nhi_um = 5.2\nedge_width_um = 0.05\npeak = 0.85"),
+    );
+    std::fs::write(d.join("v.toml"), toml).unwrap();
+    check(&["mtf", "--sensor", "v.toml"], &["v.toml", "line"]);
+    // NUC sidecars: the private file as the sidecar, and sidecars quoting it in a value
+    // and in a key.
+    fixture_nuc(d);
+    std::fs::copy(d.join("nuc.npy"), d.join("p.npy")).unwrap();
+    std::fs::copy(d.join("private"), d.join("p.json")).unwrap();
+    check(
+        &["nuc", "apply", "lo.png", "--nuc", "p.json", "-o", "c.tiff"],
+        &["p.json", "line 1"],
+    );
+    let side: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("nuc.json")).unwrap()).unwrap();
+    let mut v = side.clone();
+    v["format"] = marker.into();
+    std::fs::write(d.join("p.json"), v.to_string()).unwrap();
+    check(
+        &["nuc", "apply", "lo.png", "--nuc", "p.json", "-o", "c.tiff"],
+        &["p.json", "eoir-nuc"],
+    );
+    let mut v = side.clone();
+    v[marker] = 1.into();
+    std::fs::write(d.join("p.json"), v.to_string()).unwrap();
+    check(
+        &["nuc", "apply", "lo.png", "--nuc", "p.json", "-o", "c.tiff"],
+        &["p.json", "unknown field"],
+    );
+    // An EMVA descriptor and an ENVI header that are the private file.
+    std::fs::create_dir(d.join("emva")).unwrap();
+    std::fs::copy(d.join("private"), d.join("emva/descriptor.txt")).unwrap();
+    check(
+        &["characterize", "emva", "-o", "never"],
+        &["descriptor.txt", "line 1"],
+    );
+    std::fs::copy(d.join("private"), d.join("p.hdr")).unwrap();
+    std::fs::write(d.join("p.img"), [0u8; 16]).unwrap();
+    check(&run_args("p.hdr", "never", &[]), &["p.hdr", "line 1"]);
+}
+
+/// Issue 39: values that would be written non-finite, NUC sidecars out of range, a NUC
+/// pair that does not belong together and impossible blackbody temperatures are errors
+/// naming what is valid, and nothing is written.
+#[test]
+fn non_finite_outputs_bad_sidecars_and_mismatched_nuc_pairs_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // restore of f32 images near the f32 limit: a step from 0 to 3.3e38 (the Wiener
+    // overshoot passes 3.4e38) is refused; one 3e38 pixel is refused too or, should the
+    // defect detection replace it, restored finite — never written as +inf.
+    let write = |name: &str, f: &dyn Fn(usize, usize) -> f32| {
+        let img = ndarray::Array2::<f32>::from_shape_fn((16, 16), |(r, c)| f(r, c));
+        eoir::io::raster::write_tiff_f32(&d.join(name), img.view()).unwrap();
+    };
+    write("edge.tiff", &|_, c| if c < 8 { 0.0 } else { 3.3e38 });
+    write("hot.tiff", &|r, c| {
+        if (r, c) == (8, 8) {
+            3e38
+        } else {
+            100.0
+        }
+    });
+    let restore = |input: &str| -> Vec<String> {
+        [
+            "restore",
+            input,
+            "--sensor",
+            "multimir",
+            "--set",
+            "detector.rows=16",
+            "--set",
+            "detector.cols=16",
+            "--units",
+            "electrons",
+            "--nsr",
+            "0.01",
+            "-o",
+            "out",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect()
+    };
+    let args = restore("edge.tiff");
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    refused(d, &args, &["restored.tiff", "non-finite", "3.4e38"]);
+    let args = restore("hot.tiff");
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = eoir(d, &args);
+    if o.code == Some(0) {
+        let r = eoir::io::raster::read_tiff_f32(&d.join("out/restored.tiff")).unwrap();
+        assert!(r.iter().all(|v| v.is_finite()), "{}", o.stdout);
+        std::fs::remove_dir_all(d.join("out")).unwrap();
+    } else {
+        assert_one_error(&o, "restore hot.tiff", &["restored.tiff", "non-finite"]);
+        assert!(!d.join("out").exists());
+    }
+    // nuc fit: a temperature no blackbody has.
+    fixture_nuc(d);
+    refused(
+        d,
+        &[
+            "nuc",
+            "fit",
+            "lo.png",
+            "hi.png",
+            "lo.png",
+            "--temperatures-k",
+            "280,300,1e30",
+            "-o",
+            "x.json",
+        ],
+        &["--temperatures-k", "1e30", "150", "1000"],
+    );
+    // Sidecar normalisation out of range.
+    let side: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("nuc.json")).unwrap()).unwrap();
+    std::fs::copy(d.join("nuc.npy"), d.join("p.npy")).unwrap();
+    for (key, value, needles) in [
+        (
+            "signal_scale",
+            serde_json::json!(1e-320),
+            ["signal_scale", "1e-9"],
+        ),
+        (
+            "signal_centre",
+            serde_json::json!(1e308),
+            ["signal_centre", "1e12"],
+        ),
+    ] {
+        let mut v = side.clone();
+        v[key] = value;
+        std::fs::write(d.join("p.json"), v.to_string()).unwrap();
+        refused(
+            d,
+            &["nuc", "apply", "lo.png", "--nuc", "p.json", "-o", "c.tiff"],
+            &needles,
+        );
+    }
+    // New coefficients beside the old sidecar (what an interrupted fit used to leave).
+    std::fs::create_dir(d.join("b")).unwrap();
+    let hi3 = ndarray::Array2::<u16>::from_shape_fn((8, 8), |(r, c)| 3000 + (r * 8 + c) as u16 * 3);
+    eoir::io::raster::write_png_u16(&d.join("b/hi3.png"), hi3.view()).unwrap();
+    let o = eoir(
+        d,
+        &[
+            "nuc",
+            "fit",
+            "lo.png",
+            "b/hi3.png",
+            "--temperatures-k",
+            "290,310",
+            "-o",
+            "b/nuc.json",
+        ],
+    );
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    std::fs::copy(d.join("b/nuc.npy"), d.join("p.npy")).unwrap();
+    std::fs::copy(d.join("nuc.json"), d.join("p.json")).unwrap();
+    refused(
+        d,
+        &["nuc", "apply", "lo.png", "--nuc", "p.json", "-o", "c.tiff"],
+        &["p.npy", "do not belong", "p.json"],
+    );
+    // A NaN coefficient at a pixel the sidecar does not list (a version-1 sidecar, which
+    // has no checksum to stop at first).
+    let mut a: ndarray::Array3<f64> = ndarray_npy::read_npy(d.join("nuc.npy")).unwrap();
+    // A pixel the calibration did not flag (a flagged one is replaced anyway).
+    let flagged = side["bad_pixels"].as_array().cloned().unwrap_or_default();
+    let (r, c) = [(2usize, 3usize), (5, 6), (6, 1)]
+        .into_iter()
+        .find(|&(r, c)| !flagged.contains(&serde_json::json!([r, c])))
+        .unwrap();
+    a[[0, r, c]] = f64::NAN;
+    ndarray_npy::write_npy(d.join("p.npy"), &a).unwrap();
+    let mut v = side.clone();
+    v.as_object_mut().unwrap().remove("coefficients_fnv1a64");
+    v["version"] = 1.into();
+    std::fs::write(d.join("p.json"), v.to_string()).unwrap();
+    refused(
+        d,
+        &["nuc", "apply", "lo.png", "--nuc", "p.json", "-o", "c.tiff"],
+        &["p.npy", &format!("[{r}, {c}]"), "NaN"],
+    );
+    // Listed as rank-deficient, the NaN pixel is replaced and counted (the summary also
+    // counts pixels left non-finite by the correction itself).
+    v["rank_deficient"] = serde_json::json!([[r, c]]);
+    std::fs::write(d.join("p.json"), v.to_string()).unwrap();
+    let o = eoir(
+        d,
+        &["nuc", "apply", "lo.png", "--nuc", "p.json", "-o", "c.tiff"],
+    );
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    // Rank-deficient pixels belong to the calibration's map of pixels to replace.
+    assert!(
+        o.stdout
+            .contains("1 bad pixel(s) replaced: 1 from the calibration's map"),
+        "{}",
+        o.stdout
+    );
+    let c = eoir::io::raster::read_tiff_f32(&d.join("c.tiff")).unwrap();
+    assert!(c.iter().all(|v| v.is_finite()));
 }

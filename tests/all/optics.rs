@@ -546,26 +546,51 @@ fn format_message(e: Error) -> String {
 
 #[test]
 fn measured_mtf_csv_errors_name_file_and_line() {
-    let cases: &[(&str, &str, &str)] = &[
-        // (content, expected line tag, text expected in the message)
-        ("f,mtf\n0,1\n10,0.5\n20,abc\n", "line 4:", "20,abc"),
-        ("f,mtf\n0,1\n10,0.5,7\n", "line 3:", "10,0.5,7"),
-        ("f,mtf\n0,1\nfreq,mtf\n", "line 3:", "freq,mtf"),
-        ("# c\nf,mtf\n\n0,1\n10,0.5\n10,0.4\n", "line 6:", "10,0.4"),
-        ("f,mtf\n1,1\n10,0.5\n", "line 2:", "1,1"),
-        ("f,mtf\n0,1\n10,1.7\n", "line 3:", "10,1.7"),
-        ("f,mtf\n0,0\n10,0.5\n", "line 2:", "0,0"),
-        ("f,mtf\n0,1\n10,-0.5\n", "line 3:", "10,-0.5"),
-        ("f,mtf\n0;1\n", "1 data rows", "at least 2"),
-        ("# empty\n", "0 data rows", "at least 2"),
+    // (content, expected line tag, text expected in the message, file text that must not
+    // be shown: the table may be a file that is not meant to be printed)
+    let cases: &[(&str, &str, &str, &str)] = &[
+        (
+            "f,mtf\n0,1\n10,0.5\n20,abc\n",
+            "line 4, column 2:",
+            "expected a number",
+            "abc",
+        ),
+        (
+            "f,mtf\n0,1\n10,0.5,7\n",
+            "line 3:",
+            "expected 2 columns",
+            "0.5,7",
+        ),
+        (
+            "f,mtf\n0,1\nfreq,mtf\n",
+            "line 3, column 1:",
+            "expected a number",
+            "freq,mtf",
+        ),
+        (
+            "# c\nf,mtf\n\n0,1\n10,0.5\n10,0.4\n",
+            "line 6:",
+            "expected",
+            "10,0.4",
+        ),
+        ("f,mtf\n1,1\n10,0.5\n", "line 2:", "expected", "1,1"),
+        ("f,mtf\n0,1\n10,1.7\n", "line 3:", "expected", "10,1.7"),
+        ("f,mtf\n0,0\n10,0.5\n", "line 2:", "expected", "0,0"),
+        ("f,mtf\n0,1\n10,-0.5\n", "line 3:", "expected", "10,-0.5"),
+        ("f,mtf\n0;1\n", "1 data rows", "at least 2", "0;1"),
+        ("# empty\n", "0 data rows", "at least 2", "# empty"),
     ];
-    for (content, line_tag, text) in cases {
+    for (content, line_tag, text, hidden) in cases {
         let f = write_temp(content);
         let msg = format_message(MeasuredMtf::from_csv(f.path()).unwrap_err());
         let name = f.path().file_name().unwrap().to_string_lossy().to_string();
         assert!(msg.contains(&name), "no file name in: {msg}");
         assert!(msg.contains(line_tag), "no `{line_tag}` in: {msg}");
         assert!(msg.contains(text), "no `{text}` in: {msg}");
+        assert!(
+            !msg.contains(hidden),
+            "the file's text `{hidden}` in: {msg}"
+        );
     }
     // Missing file: an I/O error naming it.
     let missing = std::path::Path::new("/nonexistent/dir/mtf.csv");
