@@ -7,11 +7,15 @@ use anyhow::{bail, Context, Result};
 use ndarray::Array2;
 use serde_json::json;
 
+use eoir::calibration::instance::{sensor_hash, SensorInstance};
+use eoir::detector::DetectorInstance;
 use eoir::display;
 use eoir::io::raster;
+use eoir::processing::bad_pixels::{self, find_image_defects, BadPixelMap};
 use eoir::processing::wiener::{
-    self, replace_invalid_pixels, NoiseRule, SensorTransfer, IMPULSE_K_SIGMA,
+    self, Method, NoiseRule, RestoreMasks, SensorTransfer, IMPULSE_K_SIGMA,
 };
+use eoir::sensor::Sensor;
 
 use super::run::SensorArgs;
 
@@ -123,9 +127,14 @@ pub struct RestoreArgs {
     /// optics do not pass) or `model` (the sensor's shot, read and quantisation noise).
     #[arg(long, default_value = "auto", value_parser = ["auto", "model"])]
     pub noise: String,
-    /// A constant noise-to-signal power ratio instead of `--noise`.
-    #[arg(long, conflicts_with = "noise")]
+    /// A constant noise-to-signal power ratio instead of `--noise` and `--method`.
+    #[arg(long, conflicts_with_all = ["noise", "method"])]
     pub nsr: Option<f64>,
+    /// Filter: `wiener` (power-law object spectrum), `wiener-hunt` (Laplacian smoothness
+    /// prior) or `auto` (whichever of those, a constant NSR and the unrestored input has
+    /// the least estimated error; never worse than the input by that estimate).
+    #[arg(long, default_value = "auto", value_parser = ["auto", "wiener", "wiener-hunt"])]
+    pub method: String,
     /// Black level of a DN image, DN (default: the sensor model's offset plus its dark
     /// and background signal).
     #[arg(long)]
@@ -161,6 +170,85 @@ fn display_stretch(a: &Array2<f64>) -> ndarray::Array2<u8> {
     )
     .unwrap_or(display::Stretch { lo: 0.0, hi: 1.0 });
     a.mapv(|v| stretch.to_u8(v))
+}
+
+/// The defects of an image to replace before analysis, and where they came from.
+pub struct FoundDefects {
+    /// Pixels to replace.
+    pub defects: BadPixelMap,
+    /// Saturated (clipped) pixels, kept but masked.
+    pub saturated: BadPixelMap,
+    /// `instance` (the recording sensor instance's own defect map, rebuilt from the seed
+    /// in `instance.json`) or `image` (found in the image by
+    /// [`find_image_defects`]).
+    pub source: &'static str,
+    /// Number of defect clusters.
+    pub clusters: usize,
+    /// Pixels in the largest cluster.
+    pub largest_cluster: usize,
+}
+
+/// The defect map of the sensor instance that recorded `image` — when `instance.json`
+/// beside it names `sensor` (the same resolved-sensor hash) — rebuilt from its seed
+/// ([`DetectorInstance::new`] draws the same defects), as a bad-pixel mask; `None` when
+/// there is no sidecar or it names another sensor (a note says so).
+///
+/// Errors: an unreadable sidecar, or a detector that cannot be rebuilt.
+pub fn instance_defects(image: &Path, sensor: &Sensor) -> Result<Option<BadPixelMap>> {
+    let Some(inst) = SensorInstance::beside(image)? else {
+        return Ok(None);
+    };
+    if inst.sensor_hash != sensor_hash(sensor)? {
+        eprintln!(
+            "note: {} was recorded by another sensor instance than `{}` ({}): finding defects in the image instead",
+            image.display(),
+            sensor.name,
+            inst.sensor
+        );
+        return Ok(None);
+    }
+    let det = DetectorInstance::new(sensor.detector(), inst.seed)?;
+    Ok(Some(BadPixelMap::from_mask(
+        det.defect_map().mapv(|c| c != 0),
+    )))
+}
+
+/// The defects of `image`: the recording instance's own map ([`instance_defects`]) with
+/// the non-finite pixels added, else those [`find_image_defects`] finds (`full_scale`:
+/// the ADC's full scale of a DN image). Saturated regions always come from the image.
+pub fn image_defects(
+    path: &Path,
+    image: &Array2<f64>,
+    sensor: &Sensor,
+    full_scale: Option<f64>,
+) -> Result<FoundDefects> {
+    let found = find_image_defects(image.view(), IMPULSE_K_SIGMA, full_scale)
+        .context("finding defective pixels")?;
+    match instance_defects(path, sensor)? {
+        Some(map) if map.dim() == image.dim() => {
+            let map = map.union(&BadPixelMap::from_mask(image.mapv(|v| !v.is_finite())))?;
+            let saturated = BadPixelMap::from_mask(
+                ndarray::Zip::from(found.saturated.mask())
+                    .and(map.mask())
+                    .map_collect(|&s, &d| s && !d),
+            );
+            let sizes = bad_pixels::cluster_sizes(&map);
+            Ok(FoundDefects {
+                clusters: sizes.len(),
+                largest_cluster: sizes.iter().copied().max().unwrap_or(0),
+                defects: map,
+                saturated,
+                source: "instance",
+            })
+        }
+        _ => Ok(FoundDefects {
+            defects: found.defects,
+            saturated: found.saturated,
+            source: "image",
+            clusters: found.clusters,
+            largest_cluster: found.largest_cluster,
+        }),
+    }
 }
 
 /// `eoir restore`.
@@ -201,32 +289,55 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
         InputKind::Dn => "DN",
         InputKind::Float => args.units.as_str(),
     };
-    let (clean, replaced) =
-        replace_invalid_pixels(image.view(), IMPULSE_K_SIGMA).context("replacing dead pixels")?;
+    let full_scale = (kind == InputKind::Dn).then(|| model.max_dn());
+    let defects = image_defects(&args.input, &image, &sensor, full_scale)?;
+    let replaced = defects.defects.count();
+    let clean = if replaced > 0 {
+        bad_pixels::replace(image.view(), &defects.defects).context("replacing defective pixels")?
+    } else {
+        image.clone()
+    };
     let signal = clean.mapv(|v| v - black);
+    let mean = signal.mean().unwrap_or(0.0);
+    // The sensor model's noise at the image's mean level (DN or electrons).
+    let model_variance = match kind {
+        InputKind::Dn => {
+            let k = model.gain_dn_per_e();
+            let mean_e = (mean / k).max(0.0);
+            Some(model.temporal_noise_dn(mean_e).powi(2) + model.quantisation_noise_dn().powi(2))
+        }
+        InputKind::Float if units == "electrons" => {
+            Some(model.temporal_noise_e(mean.max(0.0)).powi(2))
+        }
+        InputKind::Float => None,
+    };
     let rule = match (args.nsr, args.noise.as_str()) {
         (Some(x), _) => NoiseRule::Constant(x),
-        (None, "model") => {
-            let mean = signal.mean().unwrap_or(0.0);
-            let variance = match kind {
-                InputKind::Dn => {
-                    let k = model.gain_dn_per_e();
-                    let mean_e = (mean / k).max(0.0);
-                    model.temporal_noise_dn(mean_e).powi(2) + model.quantisation_noise_dn().powi(2)
-                }
-                InputKind::Float if units == "electrons" => model.temporal_noise_e(mean.max(0.0)).powi(2),
-                InputKind::Float => bail!(
-                    "--noise model needs DN or electrons to know the noise level; for radiance use --noise auto or --nsr"
-                ),
-            };
-            NoiseRule::Model {
-                noise_variance: variance,
-            }
-        }
+        (None, "model") => match model_variance {
+            Some(v) => NoiseRule::Model { noise_variance: v },
+            None => bail!(
+                "--noise model needs DN or electrons to know the noise level; for radiance use --noise auto or --nsr"
+            ),
+        },
         (None, _) => NoiseRule::Auto,
     };
+    let method = Method::parse(&args.method)?;
+    let noise_mask = defects.defects.union(&defects.saturated)?;
     let transfer = SensorTransfer::new(&sensor)?;
-    let r = wiener::wiener_restore(signal.view(), &transfer, rule)?;
+    let saturated = defects.saturated.clone();
+    let masks = RestoreMasks {
+        noise: Some(&noise_mask),
+        saturated: (saturated.count() > 0).then_some(&saturated),
+    };
+    let r = wiener::restore(signal.view(), &transfer, rule, method, masks)?;
+    let model_sigma = model_variance.map(f64::sqrt);
+    if let (Some(m), Some(s)) = (r.noise_sigma_measured, model_sigma) {
+        if !(0.5..=2.0).contains(&(m / s)) {
+            eprintln!(
+                "warning: the image's own noise ({m:.4} {units} rms, Immerkær) differs from the sensor model's ({s:.4}) by more than 2×: is this the sensor and black level that recorded it?"
+            );
+        }
+    }
     let restored = r.image.mapv(|v| v + black);
     let mtf_nyquist_x = transfer.eval(0.5, 0.0);
     let mtf_nyquist_y = transfer.eval(0.0, 0.5);
@@ -237,12 +348,25 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
         "units": units,
         "black_level_dn": if kind == InputKind::Dn { Some(black) } else { None },
         "pixels_replaced": replaced,
+        "defects": {
+            "source": defects.source,
+            "replaced": replaced,
+            "clusters": defects.clusters,
+            "largest_cluster_px": defects.largest_cluster,
+            "saturated_px": saturated.count(),
+            "saturated_raised_px": r.saturated_raised,
+        },
         "noise_rule": r.rule,
+        "method": r.method,
+        "method_requested": if args.nsr.is_some() { "constant" } else { args.method.as_str() },
+        "candidates": r.candidates.iter().map(|c| json!({"method": c.name, "parameter": c.parameter, "relative_error": c.relative_risk})).collect::<Vec<_>>(),
+        "sharpness_guard_bins": r.guarded_bins,
         "nsr": match rule { NoiseRule::Constant(x) => json!(x), _ => json!(null) },
         "nsr_median": r.nsr_median,
         "noise_power": r.noise_power,
         "noise_sigma": r.noise_sigma,
-        "noise_bins": r.noise_bins.map(|(n, negligible)| json!({"count": n, "negligible_h": negligible})),
+        "noise_sigma_measured": r.noise_sigma_measured,
+        "noise_sigma_model": model_sigma,
         "object_spectrum_exponent": r.spectrum_exponent,
         "transfer_function": {
             "mtf_at_nyquist_x": mtf_nyquist_x,
@@ -270,8 +394,9 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
         eoir::io::write_all(w, text.as_bytes(), &json_path)
     })?;
     println!(
-        "{}: Wiener ({}{}), MTF at Nyquist {:.3} (x) {:.3} (y), {} pixels replaced",
+        "{}: {} ({}{}), MTF at Nyquist {:.3} (x) {:.3} (y), {} pixels replaced",
         sensor.name,
+        r.method,
         r.rule,
         match (rule, r.noise_sigma) {
             (NoiseRule::Constant(x), _) => format!(" NSR {x}"),
