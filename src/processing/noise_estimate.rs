@@ -96,39 +96,3 @@ pub fn immerkaer_sigma(
         pixels,
     })
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use ndarray::Array2;
-    use rand::SeedableRng;
-    use rand_distr::{Distribution, Normal};
-
-    /// White Gaussian noise of σ = 3 on a bilinear ramp with a sharp step: the estimate
-    /// is within 3 % of 3 (the operator ignores the ramp, the median the step's pixels);
-    /// the mean-absolute form is pulled up by the step.
-    #[test]
-    fn immerkaer_recovers_white_noise_on_a_ramp_with_an_edge() {
-        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
-        let n = Normal::new(0.0, 3.0).unwrap();
-        let img = Array2::from_shape_fn((128, 128), |(r, c)| {
-            let step = if c > 64 { 500.0 } else { 0.0 };
-            100.0 + 0.7 * r as f64 - 0.3 * c as f64
-                + 0.01 * (r * c) as f64
-                + step
-                + n.sample(&mut rng)
-        });
-        let e = immerkaer_sigma(img.view(), None).unwrap();
-        assert!((e.sigma / 3.0 - 1.0).abs() < 0.03, "{}", e.sigma);
-        assert_eq!(e.pixels, 126 * 126);
-        // A masked column removes the three windows around it.
-        let mut m = BadPixelMap::new(128, 128);
-        for r in 0..128 {
-            m.set(r, 10, true).unwrap();
-        }
-        assert_eq!(
-            immerkaer_sigma(img.view(), Some(&m)).unwrap().pixels,
-            126 * 123
-        );
-    }
-}

@@ -745,3 +745,29 @@ fn image_defect_clusters_are_found_and_edges_are_not() {
         );
     }
 }
+
+/// Immerkær's operator with a median scale: white Gaussian noise of σ = 3 on a bilinear
+/// ramp with a 500-unit step is recovered within 3 % (the operator removes the ramp, the
+/// median ignores the step's pixels); a masked column removes the windows touching it.
+#[test]
+fn immerkaer_recovers_white_noise_on_a_ramp_with_an_edge() {
+    use eoir::processing::noise_estimate::immerkaer_sigma;
+    use rand_distr::Distribution;
+    let mut r = rng(7);
+    let n = Normal::new(0.0, 3.0).unwrap();
+    let img = Array2::from_shape_fn((128, 128), |(y, x)| {
+        let step = if x > 64 { 500.0 } else { 0.0 };
+        100.0 + 0.7 * y as f64 - 0.3 * x as f64 + 0.01 * (y * x) as f64 + step + n.sample(&mut r)
+    });
+    let e = immerkaer_sigma(img.view(), None).unwrap();
+    assert!((e.sigma / 3.0 - 1.0).abs() < 0.03, "{}", e.sigma);
+    assert_eq!(e.pixels, 126 * 126);
+    let mut m = BadPixelMap::new(128, 128);
+    for y in 0..128 {
+        m.set(y, 10, true).unwrap();
+    }
+    assert_eq!(
+        immerkaer_sigma(img.view(), Some(&m)).unwrap().pixels,
+        126 * 123
+    );
+}
