@@ -158,7 +158,14 @@ fn restoration_of_a_bar_scene_gains_psnr_and_auto_is_near_the_best_constant() {
         }
     }
     // The library's auto rule on the same electrons matches the CLI (units cancel).
-    let lib_auto = wiener_restore(raw_e.view(), &transfer, NoiseRule::Auto).unwrap();
+    let lib_auto = eoir::processing::wiener::restore(
+        raw_e.view(),
+        &transfer,
+        NoiseRule::Auto,
+        eoir::processing::wiener::Method::Auto,
+        Default::default(),
+    )
+    .unwrap();
     let psnr_lib = psnr_db(lib_auto.image.view(), ideal.view()).unwrap();
     let model_var = {
         let m = s.detector();
