@@ -7,11 +7,12 @@ use anyhow::{Context, Result};
 use serde_json::json;
 
 use eoir::plot::{self, LinePlot, Marker, Series};
+use eoir::processing::bad_pixels;
 use eoir::processing::edge_mtf::{slanted_edge_mtf, Roi};
-use eoir::processing::wiener::{replace_invalid_pixels, IMPULSE_K_SIGMA};
 use eoir::sensor::{presets, Sensor};
 
-use super::restore::read_image;
+use super::defects::image_defects;
+use super::restore::{read_image, InputKind};
 
 /// Arguments of `eoir edge-mtf`.
 #[derive(Debug, clap::Args)]
@@ -49,7 +50,7 @@ pub fn edge_mtf(args: EdgeMtfArgs) -> Result<()> {
         None => None,
     };
     let roi = args.roi.as_deref().map(Roi::parse).transpose()?;
-    let (image, _) = read_image(&args.image, EDGE_MTF_BYTES_PER_PIXEL)?;
+    let (image, kind) = read_image(&args.image, EDGE_MTF_BYTES_PER_PIXEL)?;
     if let Some(s) = &sensor {
         let (rows, cols) = image.dim();
         if (rows, cols) != (s.detector.rows, s.detector.cols) {
@@ -62,8 +63,54 @@ pub fn edge_mtf(args: EdgeMtfArgs) -> Result<()> {
             );
         }
     }
-    let (clean, replaced) =
-        replace_invalid_pixels(image.view(), IMPULSE_K_SIGMA).context("replacing dead pixels")?;
+    // The recording sensor: the one given, else the run's own (`config.toml` beside an
+    // image that has an `instance.json`), for its defect map.
+    let dir = args
+        .image
+        .parent()
+        .unwrap_or_else(|| std::path::Path::new("."));
+    let run_sensor = match &sensor {
+        Some(_) => None,
+        None if dir
+            .join(eoir::calibration::instance::INSTANCE_FILE)
+            .is_file()
+            && dir.join("config.toml").is_file() =>
+        {
+            let spec = dir.join("config.toml").display().to_string();
+            presets::load(&spec, &[], &[])
+                .and_then(|c| Sensor::build(&c))
+                .ok()
+                .filter(|s| (s.detector.rows, s.detector.cols) == image.dim())
+        }
+        None => None,
+    };
+    let defects = match sensor.as_ref().or(run_sensor.as_ref()) {
+        Some(s) => {
+            let full_scale = (kind == InputKind::Dn).then(|| s.detector().max_dn());
+            image_defects(&args.image, &image, s, full_scale)?
+        }
+        None => {
+            let f = bad_pixels::find_image_defects(
+                image.view(),
+                eoir::processing::wiener::IMPULSE_K_SIGMA,
+                None,
+            )
+            .context("finding defective pixels")?;
+            super::defects::FoundDefects {
+                defects: f.defects,
+                saturated: f.saturated,
+                source: "image",
+                clusters: f.clusters,
+                largest_cluster: f.largest_cluster,
+            }
+        }
+    };
+    let replaced = defects.defects.count();
+    let clean = if replaced > 0 {
+        bad_pixels::replace(image.view(), &defects.defects).context("replacing defective pixels")?
+    } else {
+        image.clone()
+    };
     let m = slanted_edge_mtf(clean.view(), roi)
         .with_context(|| format!("measuring the edge in {}", args.image.display()))?;
     let ifov_mrad = sensor.as_ref().map(|s| s.ifov_rad() * 1e3);
@@ -86,10 +133,16 @@ pub fn edge_mtf(args: EdgeMtfArgs) -> Result<()> {
         "edge_orientation": if m.vertical { "near-vertical" } else { "near-horizontal" },
         "mtf50_cy_per_px": m.mtf50_cy_per_px,
         "mtf50_cy_per_mrad": match (m.mtf50_cy_per_px, ifov_mrad) { (Some(f), Some(i)) => Some(f / i), _ => None },
-        "mtf_at_nyquist": eoir::processing::edge_mtf::interpolate(&m.freq_cy_per_px, &m.mtf, 0.5),
+        "mtf_at_nyquist": m.mtf_nyquist,
+        "mtf50_sigma_cy_per_px": m.mtf50_sigma_cy_per_px,
+        "mtf_at_nyquist_sigma": m.mtf_nyquist_sigma,
+        "uncertainty_method": format!("bootstrap over the region's lines ({} replicates)", eoir::processing::edge_mtf::BOOTSTRAP_REPLICATES),
+        "phase_fill": m.phase_fill,
+        "warnings": m.warnings,
         "edge_contrast": m.contrast,
         "noise_rms": m.noise_rms,
         "pixels_replaced": replaced,
+        "defects": { "source": defects.source, "clusters": defects.clusters, "largest_cluster_px": defects.largest_cluster },
         "sensor": sensor.as_ref().map(|s| s.name.clone()),
         "oversampling": eoir::processing::edge_mtf::OVERSAMPLING,
     });
@@ -125,6 +178,9 @@ pub fn edge_mtf(args: EdgeMtfArgs) -> Result<()> {
     })?;
     set.write_json("edge_mtf.json", &report)?;
     let written = set.commit()?;
+    for w in &m.warnings {
+        eprintln!("warning: {w}");
+    }
     println!(
         "edge at {:.2}° ({}), MTF50 {}",
         m.angle_deg,
@@ -133,8 +189,11 @@ pub fn edge_mtf(args: EdgeMtfArgs) -> Result<()> {
         } else {
             "near-horizontal"
         },
-        m.mtf50_cy_per_px
-            .map_or("not reached".to_string(), |f| format!("{f:.4} cy/px"))
+        match (m.mtf50_cy_per_px, m.mtf50_sigma_cy_per_px) {
+            (Some(f), Some(s)) => format!("{f:.4} ± {s:.4} cy/px"),
+            (Some(f), None) => format!("{f:.4} cy/px"),
+            _ => "not reached".to_string(),
+        }
     );
     for p in written {
         println!("wrote {}", p.display());

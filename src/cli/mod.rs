@@ -3,6 +3,7 @@
 use anyhow::{bail, Context, Result};
 
 pub mod characterize;
+pub mod defects;
 pub mod edge_mtf;
 pub mod mtf;
 pub mod nuc;

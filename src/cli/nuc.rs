@@ -3,10 +3,17 @@
 //!
 //! `fit` groups the frames by temperature (N frames and T temperatures: N/T consecutive
 //! frames per temperature, in the order of `--temperatures-k`), averages each group per
-//! pixel, and fits each pixel's polynomial onto the reference ⟨Y_k⟩, the array mean at
-//! temperature k (FOI eq. 4.1–4.2; the correction maps every pixel onto the mean response
-//! of the array). Bad pixels are found from the coldest and warmest averages
-//! (`processing::bad_pixels::detect`, median/MAD tests) and stored with the coefficients.
+//! pixel, finds the bad pixels from the coldest and warmest averages
+//! (`processing::bad_pixels::detect`, median/MAD tests: dead, hot, stuck, unresponsive),
+//! and fits each pixel's polynomial onto the reference ⟨Y_k⟩, the mean of the *good*
+//! pixels at temperature k (FOI eq. 4.1–4.2 with the defects left out of the mean: the
+//! correction maps every pixel onto the mean response of the working array). The bad
+//! pixels are stored with the coefficients. It then prints, per temperature, the residual
+//! non-uniformity σ_s/μ of the first frame of the group after correction (good pixels;
+//! that frame is one of those averaged for the fit), and at the middle temperature the
+//! NETD from the temporal noise alone and including that spatial noise
+//! (`processing::netd::netd_with_spatial_noise`; temporal noise needs ≥ 2 frames per
+//! temperature).
 //! `apply` evaluates the polynomials and replaces the bad pixels by the median of their
 //! valid neighbours.
 
@@ -17,7 +24,8 @@ use ndarray::{Array2, Array3, Axis};
 
 use eoir::io::raster;
 use eoir::processing::bad_pixels::{self, BadPixelCriteria};
-use eoir::processing::nuc::NucCoefficients;
+use eoir::processing::netd::netd_with_spatial_noise;
+use eoir::processing::nuc::{good_pixel_mean, residual_nonuniformity, NucCoefficients};
 use eoir::processing::{mean_frame, to_f64};
 
 /// Arguments of `eoir nuc`.
@@ -182,7 +190,7 @@ fn fit(a: FitArgs) -> Result<()> {
             );
         }
     }
-    let planes = (per + t.len() + 2 * (a.degree + 1) + 4) as u64;
+    let planes = (per + 3 * t.len() + 2 * (a.degree + 1) + 4) as u64;
     eoir::limits::check_alloc(
         "nuc fit",
         &[
@@ -193,6 +201,8 @@ fn fit(a: FitArgs) -> Result<()> {
         8,
     )?;
     let mut means: Vec<Array2<f64>> = Vec::with_capacity(t.len());
+    let mut firsts: Vec<Array2<f64>> = Vec::with_capacity(t.len());
+    let mut variances: Vec<Option<Array2<f64>>> = Vec::with_capacity(t.len());
     for group in a.frames.chunks(per) {
         let mut stack: Option<Array3<f64>> = None;
         for (i, p) in group.iter().enumerate() {
@@ -205,15 +215,10 @@ fn fit(a: FitArgs) -> Result<()> {
             st.index_axis_mut(Axis(0), i).assign(&img);
         }
         let st = stack.context("no frames")?;
+        firsts.push(st.index_axis(Axis(0), 0).to_owned());
+        variances.push((per >= 2).then(|| st.var_axis(Axis(0), 1.0)));
         means.push(mean_frame(st.view())?);
     }
-    // FOI eq. 4.1: the reference of level k is the array mean ⟨Y_k⟩.
-    let levels: Vec<(f64, ndarray::ArrayView2<f64>)> = means
-        .iter()
-        .map(|m| (m.mean().unwrap_or(0.0), m.view()))
-        .collect();
-    let mut coeffs =
-        NucCoefficients::fit(&levels, a.degree).context("fitting the NUC polynomials")?;
     let cold = t
         .iter()
         .enumerate()
@@ -230,6 +235,19 @@ fn fit(a: FitArgs) -> Result<()> {
         &BadPixelCriteria::default(),
     )
     .context("finding bad pixels from the coldest and warmest frames")?;
+    // FOI eq. 4.1 on the good pixels: the reference of level k is their mean ⟨Y_k⟩.
+    let references: Vec<f64> = means
+        .iter()
+        .map(|m| good_pixel_mean(m.view(), &det.map))
+        .collect::<eoir::error::Result<_>>()
+        .context("the good-pixel mean of a level")?;
+    let levels: Vec<(f64, ndarray::ArrayView2<f64>)> = references
+        .iter()
+        .zip(&means)
+        .map(|(r, m)| (*r, m.view()))
+        .collect();
+    let mut coeffs =
+        NucCoefficients::fit(&levels, a.degree).context("fitting the NUC polynomials")?;
     coeffs.set_bad_pixels(&det.map)?;
     coeffs.save(&npy)?;
     let (r, c) = coeffs.dim();
@@ -242,6 +260,57 @@ fn fit(a: FitArgs) -> Result<()> {
         npy.with_extension("json").display(),
         npy.display()
     );
+    // Quality after correction, on the good pixels.
+    let bad = coeffs.bad_pixel_map();
+    let mut order: Vec<usize> = (0..t.len()).collect();
+    order.sort_by(|x, y| t[*x].total_cmp(&t[*y]));
+    let mut residual = Vec::with_capacity(t.len());
+    for &k in &order {
+        let corrected = coeffs.apply(firsts[k].view())?;
+        let nu = residual_nonuniformity(corrected.view(), Some(&bad))?;
+        residual.push(format!("{} K {:.4} %", t[k], 100.0 * nu));
+    }
+    println!(
+        "residual non-uniformity after correction (good pixels, one frame of each level, σ/mean): {}",
+        residual.join(", ")
+    );
+    let mid = order.len() / 2;
+    let (lo, hi) = (
+        order[mid.saturating_sub(1)],
+        order[(mid + 1).min(order.len() - 1)],
+    );
+    let (lo, hi) = if lo == hi {
+        (order[0], order[order.len() - 1])
+    } else {
+        (lo, hi)
+    };
+    let k = order[mid];
+    let responsivity = (references[hi] - references[lo]) / (t[hi] - t[lo]);
+    let corrected = coeffs.apply(firsts[k].view())?;
+    let nu = residual_nonuniformity(corrected.view(), Some(&bad))?;
+    let spatial_dn = nu * good_pixel_mean(corrected.view(), &bad)?.abs();
+    match &variances[k] {
+        Some(var) => {
+            let temporal_dn = good_pixel_mean(var.view(), &bad)?.sqrt();
+            let n = netd_with_spatial_noise(temporal_dn, spatial_dn, responsivity)?;
+            println!(
+                "NETD at {} K: {:.2} mK temporal ({:.3} DN rms), {:.2} mK including the spatial noise after correction ({:.3} DN rms); responsivity {:.4} DN/K",
+                t[k],
+                1e3 * n.temporal_netd_k,
+                n.temporal_noise_dn,
+                1e3 * n.total_netd_k,
+                n.spatial_noise_dn,
+                n.responsivity_dn_per_k
+            );
+        }
+        None => println!(
+            "NETD at {} K including the spatial noise after correction: {:.2} mK ({:.3} DN rms; responsivity {:.4} DN/K); give ≥ 2 frames per temperature for the temporal NETD",
+            t[k],
+            1e3 * spatial_dn / responsivity.abs(),
+            spatial_dn,
+            responsivity
+        ),
+    }
     Ok(())
 }
 

@@ -360,3 +360,222 @@ pub fn replace(frame: ArrayView2<f64>, map: &BadPixelMap) -> Result<Array2<f64>>
     }
     Ok(out)
 }
+
+/// Half-width of the square window of [`find_image_defects`]' local median: 2, a 5 × 5
+/// window whose 24 neighbours outvote a cluster of up to [`MAX_CLUSTER_PIXELS`].
+pub const CLUSTER_WINDOW_RADIUS: usize = 2;
+
+/// Largest defect cluster [`find_image_defects`] accepts, pixels: a connected group of
+/// outliers with more pixels (or wider than [`MAX_CLUSTER_EXTENT_PX`]) is scene structure
+/// (a thin line, a point source's blur, a clipped region), not a defect.
+pub const MAX_CLUSTER_PIXELS: usize = 6;
+
+/// Largest extent of a defect cluster along a row or column, pixels.
+pub const MAX_CLUSTER_EXTENT_PX: usize = 3;
+
+/// Defects found in a single recorded image by [`find_image_defects`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImageDefects {
+    /// Pixels to replace before a Fourier-domain filter: non-finite values and the
+    /// dead, hot and stuck clusters.
+    pub defects: BadPixelMap,
+    /// Pixels at the ADC's full scale in a cluster too large to be a defect: a clipped
+    /// (saturated) part of the scene. Kept, but masked out of noise estimates; the
+    /// truth there is at least the recorded value.
+    pub saturated: BadPixelMap,
+    /// Number of defect clusters (8-connected groups of flagged pixels).
+    pub clusters: usize,
+    /// Pixels in the largest defect cluster.
+    pub largest_cluster: usize,
+    /// Robust σ of the residual from the local median (1.4826 · MAD), image units: the
+    /// scale of the outlier test.
+    pub residual_sigma: f64,
+}
+
+/// 8-connected components of the `true` pixels of `mask`, each as its pixel list.
+fn components(mask: &Array2<bool>) -> Vec<Vec<(usize, usize)>> {
+    let (rows, cols) = mask.dim();
+    let mut seen = Array2::from_elem((rows, cols), false);
+    let mut out = Vec::new();
+    for ((r, c), &m) in mask.indexed_iter() {
+        if !m || seen[[r, c]] {
+            continue;
+        }
+        seen[[r, c]] = true;
+        let mut stack = vec![(r, c)];
+        let mut comp = Vec::new();
+        while let Some((i, j)) = stack.pop() {
+            comp.push((i, j));
+            for y in i.saturating_sub(1)..=(i + 1).min(rows - 1) {
+                for x in j.saturating_sub(1)..=(j + 1).min(cols - 1) {
+                    if mask[[y, x]] && !seen[[y, x]] {
+                        seen[[y, x]] = true;
+                        stack.push((y, x));
+                    }
+                }
+            }
+        }
+        out.push(comp);
+    }
+    out
+}
+
+/// Sizes (pixels) of the 8-connected clusters of flagged pixels in `map`, in row-major
+/// order of each cluster's first pixel.
+pub fn cluster_sizes(map: &BadPixelMap) -> Vec<usize> {
+    components(map.mask()).iter().map(Vec::len).collect()
+}
+
+/// Finds dead, hot and stuck pixels — single ones and clusters (pairs, short lines, small
+/// blobs) — in one recorded image, with no calibration frames:
+///
+/// 1. **Candidates.** Every pixel is compared with the median of its finite neighbours in
+///    the 5 × 5 window ([`CLUSTER_WINDOW_RADIUS`]); the residual's robust σ over the
+///    image (1.4826 · MAD, Rousseeuw & Croux 1993) sets the scale, and a pixel whose
+///    residual exceeds `k_sigma` σ is a candidate. The 24-neighbour median is not moved
+///    by a cluster of up to [`MAX_CLUSTER_PIXELS`] (a 3 × 3 test compares each pixel of a
+///    dead pair with the other, equally dead one, and misses both), while a straight edge
+///    through the window leaves its own pixels near the median. Pixels at exactly 0 or
+///    at `full_scale` (dead, hot, clipped; DN images) and non-finite pixels are
+///    candidates too.
+/// 2. **Clusters.** Candidates are grouped 8-connected. A group of at most
+///    [`MAX_CLUSTER_PIXELS`] pixels spanning at most [`MAX_CLUSTER_EXTENT_PX`] rows and
+///    columns is a defect cluster if its pixels lie outside the range of the
+///    non-candidate pixels around it (within two pixels of the group) by more than
+///    `k_sigma` σ: each such pixel is flagged. A larger group at full scale is a clipped
+///    part of the scene ([`ImageDefects::saturated`]); any other larger group is scene
+///    structure and left alone. Non-finite pixels are always flagged.
+/// 3. **Iteration.** The medians are recomputed without the flagged pixels and the test
+///    repeated (at most three passes) until no pixel is added, so a defect next to a
+///    defect is judged against good pixels only.
+///
+/// What it cannot tell apart: a compact feature sharper than the optics allow (a point
+/// source imaged into fewer than 3 × 3 pixels far above its surroundings) from a hot
+/// cluster; a stuck pixel whose value lies within the range of its neighbours. When the
+/// sensor instance's own defect map is known, use it instead.
+///
+/// Errors: an empty image, a non-positive `k_sigma`, or no finite pixel.
+pub fn find_image_defects(
+    image: ArrayView2<f64>,
+    k_sigma: f64,
+    full_scale: Option<f64>,
+) -> Result<ImageDefects> {
+    check_frame("image", image)?;
+    require_positive("k_sigma", k_sigma)?;
+    let (rows, cols) = image.dim();
+    if !image.iter().any(|v| v.is_finite()) {
+        return Err(Error::param(
+            "image",
+            "no finite pixel",
+            "an image with finite pixel values",
+        ));
+    }
+    let at_limit = |v: f64| full_scale.is_some_and(|f| v == 0.0 || v == f);
+    let mut flagged = image.mapv(|v| !v.is_finite());
+    let mut saturated = Array2::from_elem((rows, cols), false);
+    let rad = CLUSTER_WINDOW_RADIUS;
+    let mut residual_sigma = 0.0;
+    for _pass in 0..3 {
+        // Local median of the finite, unflagged neighbours.
+        let medians: Vec<f64> = (0..rows)
+            .into_par_iter()
+            .flat_map_iter(|r| {
+                let flagged = &flagged;
+                let mut buf = Vec::with_capacity((2 * rad + 1).pow(2));
+                (0..cols)
+                    .map(move |c| {
+                        buf.clear();
+                        for i in r.saturating_sub(rad)..=(r + rad).min(rows - 1) {
+                            for j in c.saturating_sub(rad)..=(c + rad).min(cols - 1) {
+                                let v = image[[i, j]];
+                                if (i, j) != (r, c) && !flagged[[i, j]] && v.is_finite() {
+                                    buf.push(v);
+                                }
+                            }
+                        }
+                        median_in_place(&mut buf).unwrap_or(f64::NAN)
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let resid: Vec<f64> = image.iter().zip(&medians).map(|(v, m)| v - m).collect();
+        let mut abs: Vec<f64> = resid
+            .iter()
+            .zip(flagged.iter())
+            .filter(|(r, f)| r.is_finite() && !**f)
+            .map(|(r, _)| r.abs())
+            .collect();
+        let sigma = median_in_place(&mut abs).unwrap_or(0.0) * MAD_TO_SIGMA;
+        // A noise-free (e.g. quantised) image has σ = 0: any departure is then an outlier.
+        let scale = if sigma > 0.0 {
+            sigma
+        } else {
+            f64::MIN_POSITIVE
+        };
+        residual_sigma = sigma;
+        let limit = k_sigma * scale;
+        let candidate = Array2::from_shape_fn((rows, cols), |(r, c)| {
+            let v = image[[r, c]];
+            let res = resid[r * cols + c];
+            flagged[[r, c]] || !v.is_finite() || at_limit(v) || res.abs() > limit
+        });
+        let mut added = 0usize;
+        for comp in components(&candidate) {
+            let (r0, r1) = comp
+                .iter()
+                .fold((usize::MAX, 0), |a, p| (a.0.min(p.0), a.1.max(p.0)));
+            let (c0, c1) = comp
+                .iter()
+                .fold((usize::MAX, 0), |a, p| (a.0.min(p.1), a.1.max(p.1)));
+            let small = comp.len() <= MAX_CLUSTER_PIXELS
+                && r1 - r0 < MAX_CLUSTER_EXTENT_PX
+                && c1 - c0 < MAX_CLUSTER_EXTENT_PX;
+            if !small {
+                for &(r, c) in &comp {
+                    let v = image[[r, c]];
+                    if full_scale.is_some_and(|f| v == f) {
+                        saturated[[r, c]] = true;
+                    }
+                }
+                continue;
+            }
+            // The range of the good pixels around the group.
+            let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+            for i in r0.saturating_sub(2)..=(r1 + 2).min(rows - 1) {
+                for j in c0.saturating_sub(2)..=(c1 + 2).min(cols - 1) {
+                    let v = image[[i, j]];
+                    if !candidate[[i, j]] && v.is_finite() {
+                        lo = lo.min(v);
+                        hi = hi.max(v);
+                    }
+                }
+            }
+            for &(r, c) in &comp {
+                let v = image[[r, c]];
+                let bad = !v.is_finite()
+                    || (lo <= hi && (v > hi + limit || v < lo - limit))
+                    || flagged[[r, c]];
+                if bad && !flagged[[r, c]] {
+                    flagged[[r, c]] = true;
+                    added += 1;
+                }
+            }
+        }
+        if added == 0 {
+            break;
+        }
+    }
+    // Pixels flagged as defects are not part of a saturated region.
+    Zip::from(&mut saturated)
+        .and(&flagged)
+        .for_each(|s, &f| *s = *s && !f);
+    let groups = components(&flagged);
+    let largest_cluster = groups.iter().map(Vec::len).max().unwrap_or(0);
+    Ok(ImageDefects {
+        defects: BadPixelMap::from_mask(flagged),
+        saturated: BadPixelMap::from_mask(saturated),
+        clusters: groups.len(),
+        largest_cluster,
+        residual_sigma,
+    })
+}

@@ -15,12 +15,14 @@
 //! - [`wiener`]: Wiener restoration with the sensor's own transfer function on the
 //!   detector grid (FOI report eq. 3.6).
 //! - [`edge_mtf`]: ISO 12233 slanted-edge MTF measurement.
+//! - [`noise_estimate`]: the white-noise level of one image (Immerkær 1996).
 //!
 //! Frames stored as integers (`Array2<u16>` from an ADC) are converted with [`to_f64`].
 
 pub mod bad_pixels;
 pub mod edge_mtf;
 pub mod netd;
+pub mod noise_estimate;
 pub mod nuc;
 pub mod photon_transfer;
 pub mod temperature;

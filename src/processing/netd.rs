@@ -56,6 +56,56 @@ pub fn analytic_netd(
     Ok(noise_dn / r.abs())
 }
 
+/// The NETD of a corrected array with and without its residual fixed pattern (see
+/// [`netd_with_spatial_noise`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SpatialNetd {
+    /// Temporal noise, DN rms.
+    pub temporal_noise_dn: f64,
+    /// Spatial noise of one corrected frame, DN rms (residual fixed pattern and that
+    /// frame's temporal noise together).
+    pub spatial_noise_dn: f64,
+    /// Responsivity, DN/K.
+    pub responsivity_dn_per_k: f64,
+    /// `σ_t / |R|`, K.
+    pub temporal_netd_k: f64,
+    /// `max(σ_t, σ_s) / |R|`, K: the temperature difference equal to the total noise a
+    /// viewer of one corrected frame sees across the array.
+    pub total_netd_k: f64,
+}
+
+/// NETD including spatial noise after a NUC. One corrected frame of a uniform source
+/// varies across the array by `σ_s² = σ_t² + σ_fp²` (its own temporal noise plus the
+/// residual fixed pattern σ_fp; the 3-D noise model's σ_tvh and σ_vh in quadrature,
+/// D'Agostino & Webb 1991, Proc. SPIE 1488), so the NETD including spatial noise is
+/// `σ_s/|R|` beside the temporal `σ_t/|R|`. When sampling makes σ_s fall below σ_t, the
+/// total is taken as σ_t/|R| (the fixed pattern cannot be negative).
+///
+/// Errors: a negative or non-finite noise, or a zero or non-finite responsivity.
+pub fn netd_with_spatial_noise(
+    temporal_noise_dn: f64,
+    spatial_noise_dn: f64,
+    responsivity_dn_per_k: f64,
+) -> Result<SpatialNetd> {
+    require_non_negative("temporal_noise_dn", temporal_noise_dn)?;
+    require_non_negative("spatial_noise_dn", spatial_noise_dn)?;
+    if !(responsivity_dn_per_k.is_finite() && responsivity_dn_per_k != 0.0) {
+        return Err(Error::param(
+            "responsivity",
+            responsivity_dn_per_k,
+            "a finite, non-zero DN/K (the levels must differ)",
+        ));
+    }
+    let r = responsivity_dn_per_k.abs();
+    Ok(SpatialNetd {
+        temporal_noise_dn,
+        spatial_noise_dn,
+        responsivity_dn_per_k,
+        temporal_netd_k: temporal_noise_dn / r,
+        total_netd_k: temporal_noise_dn.max(spatial_noise_dn) / r,
+    })
+}
+
 /// A NETD measured from frame stacks (see [`measured_netd`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct NetdMeasurement {

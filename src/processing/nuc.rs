@@ -677,6 +677,34 @@ fn fit_line_qr(z: &[f64], y: &[f64], a: &mut [f64]) -> bool {
     true
 }
 
+/// Mean of the finite pixels of `frame` not flagged in `exclude`: the reference level of
+/// a NUC that maps every pixel onto the mean response of the *good* pixels (dead, hot and
+/// unresponsive pixels would otherwise bias every corrected level by about the defect
+/// fraction times their distance from the mean).
+///
+/// Errors: a map of another shape, or no valid pixel.
+pub fn good_pixel_mean(frame: ArrayView2<f64>, exclude: &BadPixelMap) -> Result<f64> {
+    check_frame("frame", frame)?;
+    check_shape("bad-pixel map", exclude.dim(), frame.dim())?;
+    let (sum, n) = Zip::from(&frame)
+        .and(exclude.mask())
+        .fold((0.0, 0usize), |(s, n), &v, &bad| {
+            if !bad && v.is_finite() {
+                (s + v, n + 1)
+            } else {
+                (s, n)
+            }
+        });
+    if n == 0 {
+        return Err(Error::param(
+            "frame",
+            "no good pixel",
+            "at least one finite pixel not flagged bad",
+        ));
+    }
+    Ok(sum / n as f64)
+}
+
 /// Residual non-uniformity of a (corrected) flat-field frame: spatial standard deviation
 /// over mean, `σ_s / μ` (n − 1 normalisation), over the finite pixels not flagged in
 /// `exclude`. For a frame averaged over many images this is the fixed-pattern residual;

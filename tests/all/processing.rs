@@ -670,3 +670,104 @@ fn helpers_convert_and_average() {
     assert_eq!(m[[1, 1]], 1.5 + 2.0);
     assert!(mean_frame(stack.slice_axis(Axis(0), (0..0).into())).is_err());
 }
+
+/// Defect clusters in one image: on a Gaussian-blurred slanted edge with noise, an
+/// adjacent dead pair, a vertical hot pair, a dead line of three, an L-shaped stuck
+/// triple and single dead and hot pixels are all found (the 3 × 3 impulse test misses
+/// the pairs: each compares with its equally bad partner), no edge pixel is flagged, and
+/// the replaced values lie within the noise of the clean image. A 4 × 4 clipped blob at
+/// full scale is reported as saturated, not as a defect.
+#[test]
+fn image_defect_clusters_are_found_and_edges_are_not() {
+    use eoir::processing::bad_pixels::find_image_defects;
+    use rand_distr::Distribution;
+    let mut r = rng(11);
+    let noise = Normal::new(0.0, 5.0).unwrap();
+    let (rows, cols) = (64, 64);
+    let clean = Array2::from_shape_fn((rows, cols), |(y, x)| {
+        let d = (x as f64 - 32.0) * 0.996 - (y as f64 - 32.0) * 0.087;
+        1000.0 + 3000.0 * 0.5 * (1.0 + libm::erf(d / (1.2 * std::f64::consts::SQRT_2)))
+    });
+    let mut img = clean.mapv(|v| (v + noise.sample(&mut r)).round());
+    let full = 16383.0;
+    let defects: Vec<((usize, usize), f64)> = vec![
+        ((10, 10), 0.0),
+        ((10, 11), 0.0),
+        ((20, 50), full),
+        ((21, 50), full),
+        ((40, 5), 0.0),
+        ((40, 6), 0.0),
+        ((40, 7), 0.0),
+        ((50, 45), 9000.0),
+        ((50, 46), 9000.0),
+        ((51, 45), 9000.0),
+        ((5, 40), 0.0),
+        ((55, 20), full),
+    ];
+    for ((y, x), v) in &defects {
+        img[[*y, *x]] = *v;
+    }
+    // A clipped hot spot of the scene.
+    for y in 28..32 {
+        for x in 54..58 {
+            img[[y, x]] = full;
+        }
+    }
+    let found = find_image_defects(img.view(), 6.0, Some(full)).unwrap();
+    for ((y, x), _) in &defects {
+        assert!(found.defects.is_bad(*y, *x), "missed ({y}, {x})");
+    }
+    assert_eq!(
+        found.defects.count(),
+        defects.len(),
+        "{:?}",
+        found.defects.positions()
+    );
+    assert_eq!(found.saturated.count(), 16);
+    assert_eq!(found.clusters, 6);
+    assert_eq!(found.largest_cluster, 3);
+    let fixed = replace(img.view(), &found.defects).unwrap();
+    for ((y, x), _) in &defects {
+        let e = (fixed[[*y, *x]] - clean[[*y, *x]]).abs();
+        assert!(
+            e < 30.0,
+            "({y}, {x}): {} vs {}",
+            fixed[[*y, *x]],
+            clean[[*y, *x]]
+        );
+    }
+    // Without an ADC limit the statistical test alone still finds every cluster.
+    let stat = find_image_defects(img.view(), 6.0, None).unwrap();
+    for ((y, x), _) in &defects {
+        assert!(
+            stat.defects.is_bad(*y, *x),
+            "statistical test missed ({y}, {x})"
+        );
+    }
+}
+
+/// Immerkær's operator with a median scale: white Gaussian noise of σ = 3 on a bilinear
+/// ramp with a 500-unit step is recovered within 3 % (the operator removes the ramp, the
+/// median ignores the step's pixels); a masked column removes the windows touching it.
+#[test]
+fn immerkaer_recovers_white_noise_on_a_ramp_with_an_edge() {
+    use eoir::processing::noise_estimate::immerkaer_sigma;
+    use rand_distr::Distribution;
+    let mut r = rng(7);
+    let n = Normal::new(0.0, 3.0).unwrap();
+    let img = Array2::from_shape_fn((128, 128), |(y, x)| {
+        let step = if x > 64 { 500.0 } else { 0.0 };
+        100.0 + 0.7 * y as f64 - 0.3 * x as f64 + 0.01 * (y * x) as f64 + step + n.sample(&mut r)
+    });
+    let e = immerkaer_sigma(img.view(), None).unwrap();
+    assert!((e.sigma / 3.0 - 1.0).abs() < 0.03, "{}", e.sigma);
+    assert_eq!(e.pixels, 126 * 126);
+    let mut m = BadPixelMap::new(128, 128);
+    for y in 0..128 {
+        m.set(y, 10, true).unwrap();
+    }
+    assert_eq!(
+        immerkaer_sigma(img.view(), Some(&m)).unwrap().pixels,
+        126 * 123
+    );
+}
