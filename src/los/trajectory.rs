@@ -396,7 +396,7 @@ impl Psd {
         let (s_lo, s_hi) = self.support_hz();
         let lo = lo_hz.max(s_lo);
         let hi = hi_hz.min(s_hi);
-        if !(hi > lo) {
+        if hi.is_nan() || lo.is_nan() || hi <= lo {
             return 0.0;
         }
         match self {

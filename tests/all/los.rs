@@ -67,8 +67,8 @@ fn linear_path_otf_is_the_closed_form_sinc() {
     let w = l.window(t0, t1, 1e-12);
     assert_eq!(w.segments(), 1, "a linear motion needs one segment");
     // The mean is the position at mid-window.
-    for a in 0..2 {
-        assert!((w.mean_rad[a] - rate[a] * 0.5 * (t0 + t1)).abs() < 1e-15);
+    for (m, r) in w.mean_rad.iter().zip(rate) {
+        assert!((m - r * 0.5 * (t0 + t1)).abs() < 1e-15);
     }
     let smear = [rate[0] * t_int, rate[1] * t_int];
     assert!((w.smear_rad() - smear[0].hypot(smear[1])).abs() < 1e-15);
