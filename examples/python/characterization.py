@@ -16,9 +16,14 @@ import eoir
 
 def main(out: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
-    sensor = eoir.load_sensor("ccd")
-    truth = eoir.simulate_acquisition_set(sensor, out / "acquisition", seed=1, window=64)
-    c = eoir.characterize(out / "acquisition", output=out / "datasheet")
+    # The CCD preset with a read noise, offset pattern and gain pattern of a few DN, so
+    # that every line of the datasheet has something to measure.
+    sensor = eoir.load_sensor("ccd", overrides={
+        "detector.read_noise_e": 60.0, "detector.fpn.dsnu_sigma_e": 40.0,
+        "detector.fpn.prnu_sigma_rel": 0.01, "detector.offset_dn": 40})
+    acquisition = Path(tempfile.mkdtemp(dir=out, prefix="acquisition-"))  # a new, empty folder
+    truth = eoir.simulate_acquisition_set(sensor, acquisition, seed=1, window=64)
+    c = eoir.characterize(acquisition, output=out / "datasheet")
     print(f"{sensor.name}: EMVA 1288 set of {truth['window'][0]}×{truth['window'][1]} px at "
           f"λ0 = {truth['wavelength_um']:.3f} µm")
     print(f"{'':22s}{'configured':>12s}{'measured':>12s}")

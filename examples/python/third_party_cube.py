@@ -4,7 +4,7 @@ What a scientist with a cube from another tool (CAMEO-SIM, DIRSIG, MODTRAN-drive
 renderers, a Spectral Python array) does first: write or read the cube, check its field
 covers each sensor, run it through a visible camera, an MWIR and an LWIR imager, and look.
 
-The cube here is made in the script: a 300 K ground with a 340 K vehicle and a cool sky
+The cube here is made in the script: a 300 K ground with a 318 K vehicle and a cool sky
 band, emission from Planck's law plus reflected sunlight, 0.4–12 µm, stored as an ENVI
 file the way AVIRIS-style tools write one (band-interleaved-by-pixel, wavelengths in
 nanometres, radiance in µW cm⁻² sr⁻¹ nm⁻¹). Replace ``make_envi_cube`` with your own file.
@@ -37,8 +37,8 @@ def make_envi_cube(folder: Path, field_mrad=(30.0, 22.5), samples=(240, 180)) ->
     t = np.full((rows, cols), 300.0) + 2.0 * np.sin(x / 17.0) * np.cos(y / 23.0)
     t[y < rows * 0.25] = 260.0                       # sky band
     vehicle = (abs(x - cols * 0.55) < cols * 0.12) & (abs(y - rows * 0.6) < rows * 0.08)
-    t[vehicle] = 340.0
-    emissivity = np.where(vehicle, 0.85, 0.95)
+    t[vehicle] = 318.0  # warm, inside the MWIR camera's range at its preset integration time
+    emissivity = np.where(vehicle, 0.9, 0.95)
     # Emission plus reflected sunlight (a 5800 K blackbody diluted by the solar solid angle).
     sun = planck_um(wl_um, np.full((1, 1), 5800.0)) * 6.8e-5 / np.pi
     radiance = emissivity * planck_um(wl_um, t) + (1 - emissivity) * 0.3 * sun
@@ -72,6 +72,8 @@ def sensor_covering(name, field_deg, options=None):
 def main(out: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
     cube = eoir.read_cube(make_envi_cube(out))
+    print("vehicle 318 K with emissivity 0.9 on 300 K ground: its apparent temperature is lower\n"
+          "(emissivity, blur over the small target, the sensor's path and spectral band)")
     print(f"cube {cube.radiance.shape} bands×rows×cols, {cube.wavelength_um[0]:.2f}–"
           f"{cube.wavelength_um[-1]:.2f} µm, field {cube.fov_deg[0]:.3f}° × {cube.fov_deg[1]:.3f}°")
     results = {}
@@ -84,7 +86,7 @@ def main(out: Path) -> None:
         lo, hi = s.band_um
         print(f"{name:9s} {s.cols:3d}×{s.rows:3d} px, IFOV {s.ifov_rad * 1e3:.3f} mrad, band "
               f"{lo:.2f}–{hi:.2f} µm: mean {float(ds.dn.mean()):.0f} DN"
-              + (f", vehicle {float(ds.temperature.max()):.1f} K" if "temperature" in ds else ""))
+              + (f", hottest pixel {float(ds.temperature.max()):.1f} K apparent" if "temperature" in ds else ""))
     try:
         import matplotlib
 

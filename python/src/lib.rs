@@ -17,7 +17,7 @@ use std::path::PathBuf;
 
 use ndarray::{s, Array2, Array3, ArrayView4, Axis, Ix4};
 use numpy::{
-    IntoPyArray, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyReadonlyArrayDyn,
+    IntoPyArray, PyReadonlyArray2, PyReadonlyArray3, PyReadonlyArrayDyn,
     PyUntypedArrayMethods,
 };
 use pyo3::exceptions::{PyOSError, PyRuntimeError, PyTypeError, PyValueError};
@@ -53,8 +53,9 @@ fn to_py(e: eoir::Error) -> PyErr {
         eoir::Error::InvalidParameter { field, value, expected } => {
             let field = match field.as_str() {
                 "--sensor" => "name_or_path".to_string(),
-                f if f.starts_with("--option") => {
-                    f.replacen("--option", "options", 1).trim().to_string()
+                "--option" => "options".to_string(),
+                f if f.starts_with("--option ") => {
+                    format!("options['{}']", f.trim_start_matches("--option ").trim())
                 }
                 _ => field,
             };
@@ -343,10 +344,10 @@ fn py_to_toml(v: &Bound<'_, PyAny>, key: &str, depth: usize) -> PyResult<toml::V
 /// TOML text (`eoir::sensor::Override::new`).
 #[pyfunction]
 #[pyo3(signature = (name_or_path, options=Vec::new(), overrides=Vec::new()))]
-fn load_sensor(
+fn load_sensor<'py>(
     name_or_path: &str,
     options: Vec<String>,
-    overrides: Vec<(String, Bound<'_, PyAny>)>,
+    overrides: Vec<(String, Bound<'py, PyAny>)>,
 ) -> PyResult<PySensor> {
     let overrides = overrides
         .iter()
