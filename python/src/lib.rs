@@ -17,8 +17,7 @@ use std::path::PathBuf;
 
 use ndarray::{s, Array2, Array3, ArrayView4, Axis, Ix4};
 use numpy::{
-    IntoPyArray, PyReadonlyArray2, PyReadonlyArray3, PyReadonlyArrayDyn,
-    PyUntypedArrayMethods,
+    IntoPyArray, PyReadonlyArray2, PyReadonlyArray3, PyReadonlyArrayDyn, PyUntypedArrayMethods,
 };
 use pyo3::exceptions::{PyOSError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -50,7 +49,11 @@ fn python_wording(msg: String) -> String {
 fn to_py(e: eoir::Error) -> PyErr {
     match e {
         eoir::Error::Io { .. } => PyOSError::new_err(python_wording(e.to_string())),
-        eoir::Error::InvalidParameter { field, value, expected } => {
+        eoir::Error::InvalidParameter {
+            field,
+            value,
+            expected,
+        } => {
             let field = match field.as_str() {
                 "--sensor" => "name_or_path".to_string(),
                 "--option" => "options".to_string(),
@@ -60,7 +63,12 @@ fn to_py(e: eoir::Error) -> PyErr {
                 _ => field,
             };
             PyValueError::new_err(python_wording(
-                eoir::Error::InvalidParameter { field, value, expected }.to_string(),
+                eoir::Error::InvalidParameter {
+                    field,
+                    value,
+                    expected,
+                }
+                .to_string(),
             ))
         }
         other => PyValueError::new_err(python_wording(other.to_string())),
@@ -327,14 +335,23 @@ fn py_to_toml(v: &Bound<'_, PyAny>, key: &str, depth: usize) -> PyResult<toml::V
         }
         if v.hasattr("item")? {
             let item = v.call_method0("item")?;
-            if item.get_type().module().map(|m| m.to_string()).unwrap_or_default() != "numpy" {
+            if item
+                .get_type()
+                .module()
+                .map(|m| m.to_string())
+                .unwrap_or_default()
+                != "numpy"
+            {
                 return py_to_toml(&item, key, depth);
             }
         }
     }
     Err(PyTypeError::new_err(format!(
         "invalid parameter `overrides[{key:?}]` of type {}: a bool, int, float, str, list or dict",
-        v.get_type().name().map(|n| n.to_string()).unwrap_or_default()
+        v.get_type()
+            .name()
+            .map(|n| n.to_string())
+            .unwrap_or_default()
     )))
 }
 
@@ -892,7 +909,6 @@ fn covering_params<'py>(
     Ok(d)
 }
 
-
 // ---- the toolbox: restore, edge MTF, NUC, EMVA 1288 (the CLI commands' library calls) ----
 //
 // Each function below performs the same library calls, in the same order and with the same
@@ -968,7 +984,11 @@ fn restore<'py>(
         ));
     }
     let noise = noise.to_string();
-    let units = if is_dn { "DN".to_string() } else { units.to_string() };
+    let units = if is_dn {
+        "DN".to_string()
+    } else {
+        units.to_string()
+    };
     let input_name = input_name.to_string();
     let (restored, report) = detached(py, move || {
         eoir::limits::check_alloc(
@@ -1147,8 +1167,10 @@ impl PyNuc {
     #[staticmethod]
     fn load(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
         let npy = path.with_extension("npy");
-        detached(py, move || eoir::processing::nuc::NucCoefficients::load(&npy))
-            .map(|inner| PyNuc { inner })
+        detached(py, move || {
+            eoir::processing::nuc::NucCoefficients::load(&npy)
+        })
+        .map(|inner| PyNuc { inner })
     }
     /// Writes `NAME.npy` (coefficients) and `NAME.json` (sidecar) as `eoir nuc fit` does;
     /// `path` ends in .json or .npy.

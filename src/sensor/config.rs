@@ -854,8 +854,7 @@ fn key_path(key: &str, what: &str) -> Result<Vec<String>> {
     let parts: Vec<&str> = key.split('.').map(str::trim).collect();
     let bare = |p: &str| {
         !p.is_empty()
-            && p
-                .chars()
+            && p.chars()
                 .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
     };
     if key.trim().is_empty() || !parts.iter().all(|p| bare(p)) {
