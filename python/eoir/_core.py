@@ -196,7 +196,7 @@ class Cube:
                    d["fwhm_um"], d["frame_time_s"], d["warnings"])
 
 
-def read_cube(path) -> Cube:
+def read_cube(path, radiance_units: Optional[str] = None) -> Cube:
     """Read a radiance cube file, every frame.
 
     Parameters
@@ -205,6 +205,9 @@ def read_cube(path) -> Cube:
         ENVI ``.hdr`` (with its data file), spectral OpenEXR ``.exr``, ``.npy`` with its
         ``.json`` sidecar, ``.h5`` (when built with HDF5). Units are converted to eoir's
         (any spelling of docs/importing.md).
+    radiance_units : str, optional
+        Units to use instead of what the file states (the CLI's ``--radiance-units``),
+        e.g. ``"W m-2 sr-1 nm-1"``; needed for a file that states none.
 
     Returns
     -------
@@ -217,7 +220,7 @@ def read_cube(path) -> Cube:
     ValueError
         A malformed file (the message names the file, field and what is valid).
     """
-    return Cube._from_dict(_eoir.read_cube(str(path)))
+    return Cube._from_dict(_eoir.read_cube(str(path), None if radiance_units is None else str(radiance_units)))
 
 
 def write_cube(path, cube, wavelength_um=None, fov_deg=None, units: str = SPECTRAL_UNITS,

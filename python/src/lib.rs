@@ -38,6 +38,10 @@ fn python_wording(msg: String) -> String {
         .replace("`--option ", "`options[")
         .replace("`--option`", "`options`")
         .replace("`--set`", "`overrides`")
+        .replace("`--radiance-units`", "`radiance_units`")
+        .replace("--radiance-units", "radiance_units=")
+        .replace("pass --fov-deg H,V", "pass fov_deg=(H, V)")
+        .replace("--fov-deg", "fov_deg")
         .replace(
             "raise it with --max-memory",
             "raise it with eoir.set_max_memory_bytes()",
@@ -681,11 +685,21 @@ fn cube_dict<'py>(
     Ok(d)
 }
 
-/// Reads a cube file (ENVI, spectral EXR, NPY, HDF5 with the feature), every frame.
+/// Reads a cube file (ENVI, spectral EXR, NPY, HDF5 with the feature), every frame;
+/// `radiance_units` replaces the units the file states (the CLI's `--radiance-units`).
 #[pyfunction]
-fn read_cube<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
+#[pyo3(signature = (path, radiance_units=None))]
+fn read_cube<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    radiance_units: Option<String>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let options = eoir::io::ReadOptions {
+        radiance_units,
+        ..Default::default()
+    };
     let (data, meta, ft, warnings) = detached(py, || {
-        let mut r = eoir::io::open(&path)?;
+        let mut r = eoir::io::open_with(&path, &options)?;
         let meta = r.meta().clone();
         let nf = r.frames();
         let mut data = ndarray::Array4::<f32>::zeros((nf, meta.bands(), meta.rows, meta.cols));

@@ -754,10 +754,11 @@ pub const MAX_OVERRIDE_DEPTH: usize = 16;
 /// key holding `=`, a newline or a table header cannot reach another field.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Override {
-    /// Key path, outermost table first; each part a TOML bare key (`A-Za-z0-9_-`).
-    pub path: Vec<String>,
-    /// The value set at the end of the path.
-    pub value: toml::Value,
+    /// Key path, outermost table first, never empty; each part a TOML bare key
+    /// (`A-Za-z0-9_-`).
+    path: Vec<String>,
+    /// The value set at the end of the path, nested at most [`MAX_OVERRIDE_DEPTH`] deep.
+    value: toml::Value,
 }
 
 impl Override {
@@ -767,14 +768,18 @@ impl Override {
     /// [`MAX_OVERRIDE_DEPTH`] levels of arrays and tables.
     pub fn new(key: &str, value: toml::Value) -> Result<Self> {
         let path = key_path(key, "overrides")?;
-        if depth(&value) > MAX_OVERRIDE_DEPTH {
-            return Err(Error::param(
-                format!("overrides[{}]", path.join(".")),
-                "a value nested deeper than the limit",
-                format!("at most {MAX_OVERRIDE_DEPTH} levels of lists and tables"),
-            ));
-        }
+        check_depth(&path, &value, "overrides")?;
         Ok(Override { path, value })
+    }
+
+    /// The key path, outermost table first.
+    pub fn path(&self) -> &[String] {
+        &self.path
+    }
+
+    /// The value.
+    pub fn value(&self) -> &toml::Value {
+        &self.value
     }
 
     /// Parses `a.b.c=value` (the CLI's `--set`). The key is split at the first `=`; the
@@ -800,19 +805,22 @@ impl Override {
                 .unwrap_or_else(|| toml::Value::String(raw.to_string())),
             _ => toml::Value::String(raw.to_string()),
         };
+        check_depth(&path, &value, "--set")?;
         Ok(Override { path, value })
     }
 
     /// Sets the value in `table`, creating missing intermediate tables; an intermediate
     /// key that holds a value rather than a table is an error naming it.
     pub fn apply(&self, table: &mut toml::Table) -> Result<()> {
+        let Some((leaf, parents)) = self.path.split_last() else {
+            return Err(Error::param(
+                "overrides",
+                "an empty key path",
+                "a dotted key such as optics.f_number",
+            ));
+        };
         let mut cur = table;
-        let last = self.path.len() - 1;
-        for (i, part) in self.path.iter().enumerate() {
-            if i == last {
-                cur.insert(part.clone(), self.value.clone());
-                return Ok(());
-            }
+        for (i, part) in parents.iter().enumerate() {
             let entry = cur
                 .entry(part.clone())
                 .or_insert_with(|| toml::Value::Table(toml::Table::new()));
@@ -831,6 +839,7 @@ impl Override {
                 }
             };
         }
+        cur.insert(leaf.clone(), self.value.clone());
         Ok(())
     }
 }
@@ -865,6 +874,18 @@ fn key_path(key: &str, what: &str) -> Result<Vec<String>> {
         ));
     }
     Ok(parts.into_iter().map(str::to_string).collect())
+}
+
+/// Refuses a value nested deeper than [`MAX_OVERRIDE_DEPTH`]; `what` names the setting.
+fn check_depth(path: &[String], value: &toml::Value, what: &str) -> Result<()> {
+    if depth(value) > MAX_OVERRIDE_DEPTH {
+        return Err(Error::param(
+            format!("{what}[{}]", path.join(".")),
+            "a value nested deeper than the limit",
+            format!("at most {MAX_OVERRIDE_DEPTH} levels of lists and tables"),
+        ));
+    }
+    Ok(())
 }
 
 /// Nesting depth of a TOML value (a scalar is 0).
