@@ -179,13 +179,13 @@ def test_units_spellings_like_the_readers(small_sensor, small_scene, tmp_path):
         "units": "W m-2 sr-1 nm-1", "range_m": c.range_m}))
     from_file = eoir.run(small_sensor, eoir.read_cube(tmp_path / "nm.npy"), seed=2, calibrate=False)
     np.testing.assert_array_equal(r.dn.values, from_file.dn.values)
-    # A sidecar that states no units: the error names the Python parameter, and
-    # `radiance_units=` supplies them (the CLI's --radiance-units).
+    # A sidecar that states no units: `radiance_units=` supplies them (the CLI's
+    # --radiance-units); a unit it does not know is an error naming the Python parameter.
     (tmp_path / "bare.json").write_text(json.dumps({
         "wavelength_um": list(map(float, c.wavelength_um)), "fov_deg": list(c.fov_deg)}))
     np.save(tmp_path / "bare.npy", per_nm)
     with pytest.raises(ValueError) as e:
-        eoir.read_cube(tmp_path / "bare.npy")
+        eoir.read_cube(tmp_path / "bare.npy", radiance_units="furlongs")
     assert "radiance_units" in str(e.value) and "--radiance-units" not in str(e.value)
     bare = eoir.read_cube(tmp_path / "bare.npy", radiance_units="W m-2 sr-1 nm-1")
     np.testing.assert_array_equal(bare.radiance, eoir.read_cube(tmp_path / "nm.npy").radiance)
