@@ -61,6 +61,7 @@ def _run_block(block, sensor, wavelength_um, fov_deg, seed, product, range_m, un
         range_m=range_m,
         units=units,
         nuc_degree=nuc_degree,
+        as_dataset=False,
     )
     out = getattr(r, product)
     if out is None:
@@ -143,7 +144,7 @@ def _run_file(sensor, path: str, store: str, name: str, seed: int, frames: int,
 
     cube = eoir.read_cube(path)
     r = eoir.run(sensor, cube, fov_deg=fov_deg, seed=seed, frames=frames,
-                 calibrate=calibrate, nuc_degree=nuc_degree)
+                 calibrate=calibrate, nuc_degree=nuc_degree, as_dataset=False)
     root = zarr.open_group(store, mode="a")
     g = root.require_group(name)
     for product in PRODUCTS:

@@ -16,22 +16,66 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
 
 use ndarray::{s, Array2, Array3, ArrayView4, Axis, Ix4};
-use numpy::{IntoPyArray, PyReadonlyArrayDyn, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
+use numpy::{
+    IntoPyArray, PyReadonlyArray2, PyReadonlyArray3, PyReadonlyArrayDyn, PyUntypedArrayMethods,
+};
+use pyo3::exceptions::{PyOSError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 
 use eoir::calibration::CalibrationOptions;
 use eoir::io::CubeReader;
 use eoir::pipeline::{self, RunOptions};
+use eoir::scene::units::{parse_radiance, RadianceScale, EXAMPLES as UNIT_EXAMPLES};
 use eoir::scene::{synthetic, Cube, CubeMeta, Geometry, RadianceUnits};
-use eoir::sensor::{presets, Sensor, SensorConfig};
+use eoir::sensor::config::MAX_OVERRIDE_DEPTH;
+use eoir::sensor::{presets, Override, Sensor, SensorConfig};
 
-/// Library error → Python exception, keeping the library's message.
+/// The library's messages name command-line flags where the CLI is the caller; at this
+/// boundary they name the Python parameter instead.
+fn python_wording(msg: String) -> String {
+    msg.replace("`--sensor`", "`name_or_path`")
+        .replace("`--option ", "`options[")
+        .replace("`--option`", "`options`")
+        .replace("`--set`", "`overrides`")
+        .replace("`--radiance-units`", "`radiance_units`")
+        .replace("--radiance-units", "radiance_units=")
+        .replace("pass --fov-deg H,V", "pass fov_deg=(H, V)")
+        .replace("--fov-deg", "fov_deg")
+        .replace(
+            "raise it with --max-memory",
+            "raise it with eoir.set_max_memory_bytes()",
+        )
+}
+
+/// Library error → Python exception, keeping the library's message (CLI flags renamed to
+/// the Python parameters, [`python_wording`]).
 fn to_py(e: eoir::Error) -> PyErr {
     match e {
-        eoir::Error::Io { .. } => PyOSError::new_err(e.to_string()),
-        other => PyValueError::new_err(other.to_string()),
+        eoir::Error::Io { .. } => PyOSError::new_err(python_wording(e.to_string())),
+        eoir::Error::InvalidParameter {
+            field,
+            value,
+            expected,
+        } => {
+            let field = match field.as_str() {
+                "--sensor" => "name_or_path".to_string(),
+                "--option" => "options".to_string(),
+                f if f.starts_with("--option ") => {
+                    format!("options['{}']", f.trim_start_matches("--option ").trim())
+                }
+                _ => field,
+            };
+            PyValueError::new_err(python_wording(
+                eoir::Error::InvalidParameter {
+                    field,
+                    value,
+                    expected,
+                }
+                .to_string(),
+            ))
+        }
+        other => PyValueError::new_err(python_wording(other.to_string())),
     }
 }
 
@@ -145,6 +189,36 @@ impl PySensor {
     fn fov_deg(&self) -> (f64, f64) {
         self.inner.fov_deg()
     }
+    /// The paraxial field the detector covers (horizontal, vertical), degrees: `cols·IFOV`,
+    /// `rows·IFOV`, the rule the engine samples with (`eoir::scene::sizing`). Slightly
+    /// wider than the datasheet's `fov_deg` (flat focal plane, `2·atan(n·p/2f)`).
+    #[getter]
+    fn paraxial_fov_deg(&self) -> (f64, f64) {
+        use eoir::scene::sizing::paraxial_extent_rad;
+        let i = self.inner.ifov_rad();
+        (
+            paraxial_extent_rad(self.inner.detector.cols, i).to_degrees(),
+            paraxial_extent_rad(self.inner.detector.rows, i).to_degrees(),
+        )
+    }
+    /// The field a scene must cover for this sensor (horizontal, vertical), degrees: the
+    /// paraxial extent of the detector plus `margin_px` detector pixels each side, as
+    /// `eoir scene --sensor` sizes its scenes (default margin 4 px, so the blur at the edge
+    /// pixels reaches scene content). A cube whose `fov_deg` is at least this runs.
+    #[pyo3(signature = (margin_px=4))]
+    fn scene_extent_deg(&self, margin_px: usize) -> PyResult<(f64, f64)> {
+        use eoir::scene::sizing::{paraxial_extent_rad, MAX_MARGIN_PX};
+        if margin_px > MAX_MARGIN_PX {
+            return Err(PyValueError::new_err(format!(
+                "invalid parameter `margin_px` = {margin_px}: at most {MAX_MARGIN_PX} detector pixels per side"
+            )));
+        }
+        let i = self.inner.ifov_rad();
+        Ok((
+            paraxial_extent_rad(self.inner.detector.cols + 2 * margin_px, i).to_degrees(),
+            paraxial_extent_rad(self.inner.detector.rows + 2 * margin_px, i).to_degrees(),
+        ))
+    }
     /// Detector Nyquist frequency, cycles/mrad.
     #[getter]
     fn nyquist_cy_per_mrad(&self) -> f64 {
@@ -206,16 +280,104 @@ impl PySensor {
     }
 }
 
+/// A Python override value as a TOML value: bool, int (64-bit), float, str, list/tuple,
+/// dict with str keys; NumPy scalars and arrays through `.item()` / `.tolist()`. Nesting
+/// deeper than [`MAX_OVERRIDE_DEPTH`] (a self-containing list included) is a `ValueError`,
+/// a value of another type a `TypeError`, both naming the key.
+fn py_to_toml(v: &Bound<'_, PyAny>, key: &str, depth: usize) -> PyResult<toml::Value> {
+    if depth > MAX_OVERRIDE_DEPTH {
+        return Err(PyValueError::new_err(format!(
+            "invalid parameter `overrides[{key:?}]`: a value nested deeper than {MAX_OVERRIDE_DEPTH} levels of lists and dicts"
+        )));
+    }
+    if v.is_instance_of::<PyBool>() {
+        return Ok(toml::Value::Boolean(v.extract()?));
+    }
+    if v.is_instance_of::<PyString>() {
+        return Ok(toml::Value::String(v.extract()?));
+    }
+    if v.is_instance_of::<PyInt>() {
+        return v.extract::<i64>().map(toml::Value::Integer).map_err(|_| {
+            PyValueError::new_err(format!(
+                "invalid parameter `overrides[{key:?}]` = {}: an integer from -2**63 to 2**63 - 1",
+                v.str().map(|s| s.to_string()).unwrap_or_default()
+            ))
+        });
+    }
+    if v.is_instance_of::<PyFloat>() {
+        return Ok(toml::Value::Float(v.extract()?));
+    }
+    if let Ok(d) = v.cast::<PyDict>() {
+        let mut t = toml::Table::new();
+        for (k, x) in d.iter() {
+            let k: String = k.extract().map_err(|_| {
+                PyTypeError::new_err(format!(
+                    "invalid parameter `overrides[{key:?}]`: dict keys must be str"
+                ))
+            })?;
+            let sub = format!("{key}.{k}");
+            t.insert(k, py_to_toml(&x, &sub, depth + 1)?);
+        }
+        return Ok(toml::Value::Table(t));
+    }
+    if v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>() {
+        let mut a = Vec::new();
+        for x in v.try_iter()? {
+            a.push(py_to_toml(&x?, key, depth + 1)?);
+        }
+        return Ok(toml::Value::Array(a));
+    }
+    // NumPy: scalars (np.float64, np.int32, np.bool_) and arrays.
+    let module = v
+        .get_type()
+        .module()
+        .map(|m| m.to_string())
+        .unwrap_or_default();
+    if module == "numpy" {
+        if v.hasattr("ndim")? && v.getattr("ndim")?.extract::<usize>()? > 0 {
+            return py_to_toml(&v.call_method0("tolist")?, key, depth);
+        }
+        if v.hasattr("item")? {
+            let item = v.call_method0("item")?;
+            if item
+                .get_type()
+                .module()
+                .map(|m| m.to_string())
+                .unwrap_or_default()
+                != "numpy"
+            {
+                return py_to_toml(&item, key, depth);
+            }
+        }
+    }
+    Err(PyTypeError::new_err(format!(
+        "invalid parameter `overrides[{key:?}]` of type {}: a bool, int, float, str, list or dict",
+        v.get_type()
+            .name()
+            .map(|n| n.to_string())
+            .unwrap_or_default()
+    )))
+}
+
 /// Loads a sensor: a preset name or a TOML file, with `name=value` option choices and
-/// `key.path=value` overrides (as `eoir run --option/--set`).
+/// overrides given as `(key path, value)` pairs: the key is split at its dots, each part a
+/// bare key, and the value converted from its Python type, so neither is ever read as
+/// TOML text (`eoir::sensor::Override::new`).
 #[pyfunction]
 #[pyo3(signature = (name_or_path, options=Vec::new(), overrides=Vec::new()))]
-fn load_sensor(
+fn load_sensor<'py>(
     name_or_path: &str,
     options: Vec<String>,
-    overrides: Vec<String>,
+    overrides: Vec<(String, Bound<'py, PyAny>)>,
 ) -> PyResult<PySensor> {
-    guarded(|| Sensor::build(&presets::load(name_or_path, &options, &overrides)?))
+    let overrides = overrides
+        .iter()
+        .map(|(k, v)| {
+            let value = py_to_toml(v, k, 0)?;
+            Override::new(k, value).map_err(to_py)
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    guarded(|| Sensor::build(&presets::load_with(name_or_path, &options, &overrides)?))
         .map(|inner| PySensor { inner })
 }
 
@@ -265,6 +427,8 @@ struct ArrayReader<'a> {
     data: ArrayView4<'a, f32>,
     meta: CubeMeta,
     source: String,
+    /// Factor to eoir's units of the caller's unit string (1 for eoir's own).
+    to_eoir: f64,
 }
 
 impl CubeReader for ArrayReader<'_> {
@@ -283,21 +447,42 @@ impl CubeReader for ArrayReader<'_> {
             return Err(eoir::Error::param("band", band, format!("< {nb} bands")));
         }
         let plane = self.data.slice(s![frame, band, .., ..]);
+        // Scaled exactly as the file readers scale a sample (`io::binary`: the value as
+        // f64 times the factor, plus 0, rounded to f32), so an array in W m-2 sr-1 nm-1
+        // equals the same values read from a file that declares those units.
+        let plane = if self.to_eoir != 1.0 {
+            let k = self.to_eoir;
+            plane.mapv(|v| (k * f64::from(v) + 0.0) as f32)
+        } else {
+            plane.to_owned()
+        };
         eoir::scene::check_radiance_plane(
             &self.source,
             band,
             self.meta.wavelength_um[band],
-            plane,
+            plane.view(),
         )?;
-        Ok(plane.to_owned())
+        Ok(plane)
     }
 }
 
-/// Parses a unit string, naming what is valid.
+/// Parses a radiance unit string in any spelling the file readers accept
+/// (`eoir::scene::units`), naming what is valid.
+fn parse_scale(units: &str) -> PyResult<RadianceScale> {
+    parse_radiance(units).ok_or_else(|| {
+        PyValueError::new_err(format!(
+            "invalid parameter `units` = {:?}: a radiance unit such as {UNIT_EXAMPLES}",
+            eoir::limits::escape_token(units)
+        ))
+    })
+}
+
+/// Parses a unit string that must be one of eoir's own (what a written cube declares).
 fn parse_units(units: &str) -> PyResult<RadianceUnits> {
     RadianceUnits::parse(units).ok_or_else(|| {
         PyValueError::new_err(format!(
-            "invalid parameter `units` = {units}: \"{}\" (spectral radiance) or \"{}\" (band-integrated)",
+            "invalid parameter `units` = {:?}: \"{}\" (spectral radiance) or \"{}\" (band-integrated); convert other units before writing",
+            eoir::limits::escape_token(units),
             RadianceUnits::SpectralPerUm.as_str(),
             RadianceUnits::BandIntegrated.as_str()
         ))
@@ -377,7 +562,8 @@ fn run<'py>(
     input_name: &str,
     calibration_temperatures_k: Option<Vec<f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let units = parse_units(units)?;
+    let scale = parse_scale(units)?;
+    let units = scale.units;
     let view = radiance.as_array();
     let data: ArrayView4<'_, f32> = match view.ndim() {
         3 => view.insert_axis(Axis(0)).into_dimensionality::<Ix4>(),
@@ -422,6 +608,11 @@ fn run<'py>(
         input_name: source.clone(),
         calibration: calibrate
             .then(|| {
+                if calibration_temperatures_k.as_ref().is_some_and(Vec::is_empty) {
+                    return Err(PyValueError::new_err(
+                        "invalid parameter `calibration_temperatures_k` = []: at least two blackbody temperatures, K (or None for the default levels)",
+                    ));
+                }
                 calibration_options(nuc_degree, calibration_temperatures_k.unwrap_or_default())
             })
             .transpose()?,
@@ -432,7 +623,12 @@ fn run<'py>(
         if let Some(c) = &options.calibration {
             c.validate()?;
         }
-        let mut reader = ArrayReader { data, meta, source };
+        let mut reader = ArrayReader {
+            data,
+            meta,
+            source,
+            to_eoir: scale.to_eoir,
+        };
         pipeline::run(sensor, &mut reader, &options, |_, _| {})
     })?;
     let d = PyDict::new(py);
@@ -489,11 +685,21 @@ fn cube_dict<'py>(
     Ok(d)
 }
 
-/// Reads a cube file (ENVI, spectral EXR, NPY, HDF5 with the feature), every frame.
+/// Reads a cube file (ENVI, spectral EXR, NPY, HDF5 with the feature), every frame;
+/// `radiance_units` replaces the units the file states (the CLI's `--radiance-units`).
 #[pyfunction]
-fn read_cube<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
+#[pyo3(signature = (path, radiance_units=None))]
+fn read_cube<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    radiance_units: Option<String>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let options = eoir::io::ReadOptions {
+        radiance_units,
+        ..Default::default()
+    };
     let (data, meta, ft, warnings) = detached(py, || {
-        let mut r = eoir::io::open(&path)?;
+        let mut r = eoir::io::open_with(&path, &options)?;
         let meta = r.meta().clone();
         let nf = r.frames();
         let mut data = ndarray::Array4::<f32>::zeros((nf, meta.bands(), meta.rows, meta.cols));
@@ -717,6 +923,535 @@ fn covering_params<'py>(
     Ok(d)
 }
 
+// ---- the toolbox: restore, edge MTF, NUC, EMVA 1288 (the CLI commands' library calls) ----
+//
+// Each function below performs the same library calls, in the same order and with the same
+// arithmetic, as its command in `src/cli/` (restore.rs, edge_mtf.rs, nuc.rs,
+// characterize.rs), on arrays instead of files; python/tests/test_toolbox.py checks the
+// results against the CLI's files bit for bit.
+
+/// Peak memory of a restoration per image pixel, bytes (the CLI's
+/// `RESTORE_BYTES_PER_PIXEL`, measured there).
+const RESTORE_BYTES_PER_PIXEL: u64 = 192;
+/// Peak memory of an edge-MTF measurement per image pixel, bytes (the CLI's).
+const EDGE_MTF_BYTES_PER_PIXEL: u64 = 64;
+
+/// Mean, standard deviation, minimum and maximum (as `restore.json` reports them).
+fn stats(a: &Array2<f64>) -> serde_json::Value {
+    let n = a.len() as f64;
+    let mean = a.sum() / n;
+    let var = a.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n;
+    let (lo, hi) = a
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+            (l.min(*v), h.max(*v))
+        });
+    serde_json::json!({ "mean": mean, "std": var.sqrt(), "min": lo, "max": hi })
+}
+
+/// Wiener restoration of a recorded image with the sensor's transfer function (as `eoir
+/// restore`). `image` is f64 `[row, col]`; `is_dn` says it holds DN (else f32 values in
+/// `units`, "electrons" or "radiance"). Returns `{restored (f32, what restored.tiff
+/// holds), report_json (restore.json)}`.
+#[pyfunction]
+#[pyo3(signature = (sensor, image, is_dn, noise="auto", nsr=None, black_level=None,
+    units="electrons", input_name="numpy array"))]
+#[allow(clippy::too_many_arguments)]
+fn restore<'py>(
+    py: Python<'py>,
+    sensor: &PySensor,
+    image: PyReadonlyArray2<'py, f64>,
+    is_dn: bool,
+    noise: &str,
+    nsr: Option<f64>,
+    black_level: Option<f64>,
+    units: &str,
+    input_name: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    use eoir::processing::wiener::{
+        self, replace_invalid_pixels, NoiseRule, SensorTransfer, IMPULSE_K_SIGMA,
+    };
+    let sensor = &sensor.inner;
+    let image = image.as_array().to_owned();
+    let (rows, cols) = image.dim();
+    if (rows, cols) != (sensor.detector.rows, sensor.detector.cols) {
+        return Err(PyValueError::new_err(format!(
+            "invalid parameter `image` = {rows} x {cols} pixels (rows x cols): sensor `{}` records {} x {}; restore an image with the sensor that recorded it",
+            sensor.name, sensor.detector.rows, sensor.detector.cols
+        )));
+    }
+    if !matches!(noise, "auto" | "model") {
+        return Err(PyValueError::new_err(format!(
+            "invalid parameter `noise` = {:?}: \"auto\" or \"model\"",
+            eoir::limits::escape_token(noise)
+        )));
+    }
+    if !matches!(units, "electrons" | "radiance") {
+        return Err(PyValueError::new_err(format!(
+            "invalid parameter `units` = {:?}: \"electrons\" or \"radiance\" (of a float image)",
+            eoir::limits::escape_token(units)
+        )));
+    }
+    if nsr.is_some() && noise != "auto" {
+        return Err(PyValueError::new_err(
+            "invalid parameters: give `nsr` (a constant noise-to-signal ratio) or `noise`, not both",
+        ));
+    }
+    let noise = noise.to_string();
+    let units = if is_dn {
+        "DN".to_string()
+    } else {
+        units.to_string()
+    };
+    let input_name = input_name.to_string();
+    let (restored, report) = detached(py, move || {
+        eoir::limits::check_alloc(
+            "restoring the image",
+            &[("rows", rows as u64), ("columns", cols as u64)],
+            RESTORE_BYTES_PER_PIXEL,
+        )?;
+        let model = sensor.detector();
+        let black = if is_dn {
+            let b = black_level.unwrap_or_else(|| model.expected_dn(0.0));
+            if !b.is_finite() || b < 0.0 {
+                return Err(eoir::Error::param("black_level", b, "a finite DN >= 0"));
+            }
+            b
+        } else {
+            if black_level.is_some() {
+                return Err(eoir::Error::param(
+                    "black_level",
+                    black_level.unwrap_or_default(),
+                    "None for a float image (a black level applies to DN)",
+                ));
+            }
+            0.0
+        };
+        let (clean, replaced) = replace_invalid_pixels(image.view(), IMPULSE_K_SIGMA)?;
+        let signal = clean.mapv(|v| v - black);
+        let rule = match (nsr, noise.as_str()) {
+            (Some(x), _) => NoiseRule::Constant(x),
+            (None, "model") => {
+                let mean = signal.mean().unwrap_or(0.0);
+                let variance = if is_dn {
+                    let k = model.gain_dn_per_e();
+                    let mean_e = (mean / k).max(0.0);
+                    model.temporal_noise_dn(mean_e).powi(2) + model.quantisation_noise_dn().powi(2)
+                } else if units == "electrons" {
+                    model.temporal_noise_e(mean.max(0.0)).powi(2)
+                } else {
+                    return Err(eoir::Error::param(
+                        "noise",
+                        "model",
+                        "\"auto\" or a constant `nsr` for a radiance image (the model needs DN or electrons to know the noise level)",
+                    ));
+                };
+                NoiseRule::Model {
+                    noise_variance: variance,
+                }
+            }
+            (None, _) => NoiseRule::Auto,
+        };
+        let transfer = SensorTransfer::new(sensor)?;
+        let r = wiener::wiener_restore(signal.view(), &transfer, rule)?;
+        let restored = r.image.mapv(|v| v + black);
+        let report = serde_json::json!({
+            "input": input_name,
+            "sensor": sensor.name,
+            "options": sensor.selected_options,
+            "units": units,
+            "black_level_dn": if is_dn { Some(black) } else { None },
+            "pixels_replaced": replaced,
+            "noise_rule": r.rule,
+            "nsr": match rule { NoiseRule::Constant(x) => serde_json::json!(x), _ => serde_json::json!(null) },
+            "nsr_median": r.nsr_median,
+            "noise_power": r.noise_power,
+            "noise_sigma": r.noise_sigma,
+            "noise_bins": r.noise_bins.map(|(n, negligible)| serde_json::json!({"count": n, "negligible_h": negligible})),
+            "object_spectrum_exponent": r.spectrum_exponent,
+            "transfer_function": {
+                "mtf_at_nyquist_x": transfer.eval(0.5, 0.0),
+                "mtf_at_nyquist_y": transfer.eval(0.0, 0.5),
+                "spectral_weighting_temperature_k": transfer.reference_temperature_k(),
+                "components": sensor.otf().components().iter().map(|c| c.name()).collect::<Vec<_>>(),
+            },
+            "padded_shape": [r.padded_shape.0, r.padded_shape.1],
+            "input_stats": stats(&image),
+            "output_stats": stats(&restored),
+        });
+        let text = serde_json::to_string(&report)
+            .map_err(|e| eoir::Error::param("report", "restore", e.to_string()))?;
+        let restored = restored.mapv(|v| v as f32);
+        if let Some(v) = restored.iter().find(|v| !v.is_finite()) {
+            return Err(eoir::Error::OutOfRange(format!(
+                "the restored image holds a value float32 cannot hold ({v}); check the input for extreme pixels"
+            )));
+        }
+        Ok((restored, text))
+    })?;
+    let d = PyDict::new(py);
+    d.set_item("restored", restored.into_pyarray(py))?;
+    d.set_item("report_json", report)?;
+    Ok(d)
+}
+
+/// ISO 12233 slanted-edge MTF of an image (as `eoir edge-mtf`): `image` f64 `[row, col]`,
+/// `roi` `(x, y, width, height)` or None, `sensor` (adds cycles/mrad) or None. Returns
+/// `{freq_cy_per_px, mtf, esf, report_json}` (report_json: edge_mtf.json's fields).
+#[pyfunction]
+#[pyo3(signature = (image, roi=None, sensor=None, input_name="numpy array"))]
+fn edge_mtf<'py>(
+    py: Python<'py>,
+    image: PyReadonlyArray2<'py, f64>,
+    roi: Option<(usize, usize, usize, usize)>,
+    sensor: Option<PyRef<'py, PySensor>>,
+    input_name: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    use eoir::processing::edge_mtf::{interpolate, slanted_edge_mtf, Roi, OVERSAMPLING};
+    use eoir::processing::wiener::{replace_invalid_pixels, IMPULSE_K_SIGMA};
+    let image = image.as_array().to_owned();
+    let (rows, cols) = image.dim();
+    let sensor_info = sensor.as_ref().map(|s| {
+        (
+            s.inner.name.clone(),
+            s.inner.ifov_rad() * 1e3,
+            (s.inner.detector.rows, s.inner.detector.cols),
+        )
+    });
+    if let Some((name, _, dim)) = &sensor_info {
+        if (rows, cols) != *dim {
+            return Err(PyValueError::new_err(format!(
+                "invalid parameter `image` = {rows} x {cols} pixels (rows x cols): sensor `{name}` records {} x {}",
+                dim.0, dim.1
+            )));
+        }
+    }
+    let input_name = input_name.to_string();
+    let (m, report) = detached(py, move || {
+        eoir::limits::check_alloc(
+            "measuring the edge",
+            &[("rows", rows as u64), ("columns", cols as u64)],
+            EDGE_MTF_BYTES_PER_PIXEL,
+        )?;
+        let roi = roi.map(|(x, y, width, height)| Roi {
+            x,
+            y,
+            width,
+            height,
+        });
+        let (clean, replaced) = replace_invalid_pixels(image.view(), IMPULSE_K_SIGMA)?;
+        let m = slanted_edge_mtf(clean.view(), roi)?;
+        let ifov_mrad = sensor_info.as_ref().map(|s| s.1);
+        let report = serde_json::json!({
+            "image": input_name,
+            "roi": { "x": m.roi.x, "y": m.roi.y, "width": m.roi.width, "height": m.roi.height },
+            "edge_angle_deg": m.angle_deg,
+            "edge_orientation": if m.vertical { "near-vertical" } else { "near-horizontal" },
+            "mtf50_cy_per_px": m.mtf50_cy_per_px,
+            "mtf50_cy_per_mrad": match (m.mtf50_cy_per_px, ifov_mrad) { (Some(f), Some(i)) => Some(f / i), _ => None },
+            "mtf_at_nyquist": interpolate(&m.freq_cy_per_px, &m.mtf, 0.5),
+            "edge_contrast": m.contrast,
+            "noise_rms": m.noise_rms,
+            "pixels_replaced": replaced,
+            "sensor": sensor_info.as_ref().map(|s| s.0.clone()),
+            "oversampling": OVERSAMPLING,
+        });
+        let text = serde_json::to_string(&report)
+            .map_err(|e| eoir::Error::param("report", "edge_mtf", e.to_string()))?;
+        Ok((m, text))
+    })?;
+    let d = PyDict::new(py);
+    d.set_item("freq_cy_per_px", m.freq_cy_per_px.into_pyarray(py))?;
+    d.set_item("mtf", m.mtf.into_pyarray(py))?;
+    d.set_item("esf", m.esf.into_pyarray(py))?;
+    d.set_item("report_json", report)?;
+    Ok(d)
+}
+
+/// Per-pixel NUC polynomials and their bad-pixel map, fitted by `eoir.nuc_fit` or
+/// loaded from the files `eoir nuc fit` writes (`Nuc.load`).
+#[pyclass(frozen, name = "Nuc", module = "eoir._eoir")]
+struct PyNuc {
+    inner: eoir::processing::nuc::NucCoefficients,
+}
+
+#[pymethods]
+impl PyNuc {
+    /// Reads coefficients written by `eoir nuc fit` or `Nuc.save` (the .json or the .npy).
+    #[staticmethod]
+    fn load(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        let npy = path.with_extension("npy");
+        detached(py, move || {
+            eoir::processing::nuc::NucCoefficients::load(&npy)
+        })
+        .map(|inner| PyNuc { inner })
+    }
+    /// Writes `NAME.npy` (coefficients) and `NAME.json` (sidecar) as `eoir nuc fit` does;
+    /// `path` ends in .json or .npy.
+    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        let npy = nuc_npy_path(&path)?;
+        detached(py, || self.inner.save(&npy))
+    }
+    /// Polynomial degree.
+    #[getter]
+    fn degree(&self) -> usize {
+        self.inner.degree()
+    }
+    /// Frame size (rows, cols).
+    #[getter]
+    fn shape(&self) -> (usize, usize) {
+        self.inner.dim()
+    }
+    /// Bad-pixel map, bool `[row, col]` (True: replaced by its neighbours' median).
+    #[getter]
+    fn bad_pixels<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray2<bool>> {
+        self.inner.bad_pixel_map().mask().clone().into_pyarray(py)
+    }
+    /// Coefficients `[degree + 1, row, col]` of the polynomial in the normalised signal
+    /// (see `signal_normalisation`).
+    #[getter]
+    fn coefficients<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray3<f64>> {
+        self.inner.coefficients().clone().into_pyarray(py)
+    }
+    /// (centre, scale) of the signal normalisation the polynomials are evaluated in.
+    #[getter]
+    fn signal_normalisation(&self) -> (f64, f64) {
+        self.inner.signal_normalisation()
+    }
+    /// Pixels whose fit was rank-deficient, `[(row, col), ...]`.
+    #[getter]
+    fn rank_deficient(&self) -> Vec<(usize, usize)> {
+        self.inner.rank_deficient().to_vec()
+    }
+    fn __repr__(&self) -> String {
+        let (r, c) = self.inner.dim();
+        format!(
+            "<eoir.Nuc degree {} {r}x{c} px, {} bad pixel(s)>",
+            self.inner.degree(),
+            self.inner.bad_pixel_map().count()
+        )
+    }
+}
+
+/// The `.npy` path of a NUC file name ending in .json or .npy.
+fn nuc_npy_path(path: &std::path::Path) -> PyResult<PathBuf> {
+    match path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .as_deref()
+    {
+        Some("json") | Some("npy") => Ok(path.with_extension("npy")),
+        _ => Err(PyValueError::new_err(format!(
+            "invalid parameter `path` = {:?}: a file name ending in .json (the .npy coefficients are written beside it)",
+            eoir::limits::escape_token(&path.display().to_string())
+        ))),
+    }
+}
+
+/// Fits per-pixel NUC polynomials (as `eoir nuc fit`): `frames` f64 `[N, row, col]`, N/T
+/// consecutive frames per temperature in the order of `temperatures_k`.
+#[pyfunction]
+#[pyo3(signature = (frames, temperatures_k, degree=1))]
+fn nuc_fit(
+    py: Python<'_>,
+    frames: PyReadonlyArray3<'_, f64>,
+    temperatures_k: Vec<f64>,
+    degree: usize,
+) -> PyResult<PyNuc> {
+    use eoir::processing::bad_pixels::{self, BadPixelCriteria};
+    use eoir::processing::nuc::{NucCoefficients, MAX_DEGREE};
+    let t = temperatures_k;
+    if degree > MAX_DEGREE {
+        return Err(PyValueError::new_err(format!(
+            "invalid parameter `degree` = {degree}: a NUC polynomial degree from 0 to {MAX_DEGREE}"
+        )));
+    }
+    if let Some(v) = t.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
+        return Err(PyValueError::new_err(format!(
+            "invalid parameter `temperatures_k`: {v} is not a temperature; give finite values > 0 K"
+        )));
+    }
+    for (i, x) in t.iter().enumerate() {
+        if t[..i].contains(x) {
+            return Err(PyValueError::new_err(format!(
+                "invalid parameter `temperatures_k`: {x} K appears twice; give each blackbody temperature once"
+            )));
+        }
+    }
+    if t.len() < degree + 1 {
+        return Err(PyValueError::new_err(format!(
+            "invalid parameter `temperatures_k`: {} temperature(s) cannot determine a degree-{degree} polynomial; give at least {}",
+            t.len(),
+            degree + 1
+        )));
+    }
+    let stack = frames.as_array();
+    let (n, rows, cols) = stack.dim();
+    if n == 0 || n % t.len() != 0 {
+        return Err(PyValueError::new_err(format!(
+            "invalid parameter `frames` = {n} frames for {} temperatures: the same number of frames (at least one) for every temperature, N/T consecutive frames each",
+            t.len()
+        )));
+    }
+    let per = n / t.len();
+    let stack = stack.to_owned();
+    let inner = detached(py, move || {
+        let planes = (per + t.len() + 2 * (degree + 1) + 4) as u64;
+        eoir::limits::check_alloc(
+            "nuc fit",
+            &[
+                ("planes", planes),
+                ("rows", rows as u64),
+                ("columns", cols as u64),
+            ],
+            8,
+        )?;
+        let mut means: Vec<Array2<f64>> = Vec::with_capacity(t.len());
+        for k in 0..t.len() {
+            let group = stack.slice(s![k * per..(k + 1) * per, .., ..]).to_owned();
+            means.push(eoir::processing::mean_frame(group.view())?);
+        }
+        // FOI eq. 4.1: the reference of level k is the array mean ⟨Y_k⟩.
+        let levels: Vec<(f64, ndarray::ArrayView2<f64>)> = means
+            .iter()
+            .map(|m| (m.mean().unwrap_or(0.0), m.view()))
+            .collect();
+        let mut coeffs = NucCoefficients::fit(&levels, degree)?;
+        let cold = t
+            .iter()
+            .enumerate()
+            .min_by(|x, y| x.1.total_cmp(y.1))
+            .map_or(0, |v| v.0);
+        let warm = t
+            .iter()
+            .enumerate()
+            .max_by(|x, y| x.1.total_cmp(y.1))
+            .map_or(0, |v| v.0);
+        let det = bad_pixels::detect(
+            means[cold].view(),
+            means[warm].view(),
+            &BadPixelCriteria::default(),
+        )?;
+        coeffs.set_bad_pixels(&det.map)?;
+        Ok(coeffs)
+    })?;
+    Ok(PyNuc { inner })
+}
+
+/// Corrects an image with NUC coefficients (as `eoir nuc apply`): f64 `[row, col]` →
+/// corrected f64, bad pixels replaced by the median of their valid neighbours.
+#[pyfunction]
+fn nuc_apply<'py>(
+    py: Python<'py>,
+    nuc: &PyNuc,
+    image: PyReadonlyArray2<'py, f64>,
+) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+    let img = image.as_array().to_owned();
+    let (rows, cols) = img.dim();
+    if (rows, cols) != nuc.inner.dim() {
+        return Err(PyValueError::new_err(format!(
+            "invalid parameter `image` = {rows} x {cols} pixels (rows x cols): the NUC is for {} x {}",
+            nuc.inner.dim().0,
+            nuc.inner.dim().1
+        )));
+    }
+    let coeffs = &nuc.inner;
+    let out = detached(py, move || {
+        let corrected = coeffs.apply(img.view())?;
+        let bad = coeffs.bad_pixel_map();
+        if bad.count() > 0 {
+            eoir::processing::bad_pixels::replace(corrected.view(), &bad)
+        } else {
+            Ok(corrected)
+        }
+    })?;
+    Ok(out.into_pyarray(py))
+}
+
+/// EMVA 1288 analysis of an acquisition set (as `eoir characterize SET`): the
+/// characterisation as JSON (`characterization.json`); with `output`, also the datasheet
+/// files the CLI writes there.
+#[pyfunction]
+#[pyo3(signature = (acquisition_set, output=None))]
+fn characterize(
+    py: Python<'_>,
+    acquisition_set: PathBuf,
+    output: Option<PathBuf>,
+) -> PyResult<String> {
+    detached(py, move || {
+        let descriptor = eoir::characterize::descriptor_path(&acquisition_set);
+        let c = eoir::characterize::characterize(&descriptor)?;
+        if let Some(out) = &output {
+            let title = acquisition_set.display().to_string();
+            eoir::characterize::write_outputs(&c, out, &title)?;
+        }
+        serde_json::to_string(&c)
+            .map_err(|e| eoir::Error::param("characterization", "json", e.to_string()))
+    })
+}
+
+/// Writes a simulated EMVA 1288 acquisition set for `sensor` into `output` (as `eoir
+/// characterize --simulate`); returns the configured truth as JSON (`truth.json`).
+#[pyfunction]
+#[pyo3(signature = (sensor, output, seed=1, window=eoir::characterize::simulate::DEFAULT_WINDOW))]
+fn simulate_acquisition_set(
+    py: Python<'_>,
+    sensor: &PySensor,
+    output: PathBuf,
+    seed: u64,
+    window: usize,
+) -> PyResult<String> {
+    let config = sensor.inner.config();
+    detached(py, move || {
+        let truth = eoir::characterize::simulate(
+            config,
+            &output,
+            &eoir::characterize::SimulateOptions { seed, window },
+        )?;
+        serde_json::to_string(&truth)
+            .map_err(|e| eoir::Error::param("truth", "json", e.to_string()))
+    })
+}
+
+/// Reads a single-plane image file: a 16-bit greyscale PNG or TIFF (DN, uint16) or a
+/// 32-bit float TIFF (float32), with the library's readers (as `eoir restore` reads them).
+#[pyfunction]
+fn read_image<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyAny>> {
+    use eoir::io::raster;
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    match ext.as_str() {
+        "png" => Ok(detached(py, || raster::read_png_u16(&path))?
+            .into_pyarray(py)
+            .into_any()),
+        "tif" | "tiff" => {
+            let (u16s, f32s) = detached(py, || match raster::read_tiff_u16(&path) {
+                Ok(a) => Ok((Some(a), None)),
+                Err(_) => raster::read_tiff_f32(&path).map(|a| (None, Some(a))),
+            })?;
+            match (u16s, f32s) {
+                (Some(a), _) => Ok(a.into_pyarray(py).into_any()),
+                (_, Some(a)) => Ok(a.into_pyarray(py).into_any()),
+                _ => Err(PyValueError::new_err("unreachable")),
+            }
+        }
+        other => Err(PyValueError::new_err(format!(
+            "invalid parameter `path` = {:?}: unsupported image type `.{}`; a 16-bit PNG/TIFF (DN) or a 32-bit float TIFF",
+            eoir::limits::escape_token(&path.display().to_string()),
+            eoir::limits::escape_token(other)
+        ))),
+    }
+}
+
+/// Sets the memory budget every size is checked against before allocating, bytes (the
+/// CLI's `--max-memory`).
+#[pyfunction]
+fn set_max_memory_bytes(bytes: u64) -> PyResult<()> {
+    guarded(|| eoir::limits::set_max_memory_bytes(bytes))
+}
+
 /// The native module.
 #[pymodule]
 fn _eoir(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -730,6 +1465,15 @@ fn _eoir(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(mtf, m)?)?;
     m.add_function(wrap_pyfunction!(scene, m)?)?;
     m.add_function(wrap_pyfunction!(covering_params, m)?)?;
+    m.add_class::<PyNuc>()?;
+    m.add_function(wrap_pyfunction!(restore, m)?)?;
+    m.add_function(wrap_pyfunction!(edge_mtf, m)?)?;
+    m.add_function(wrap_pyfunction!(nuc_fit, m)?)?;
+    m.add_function(wrap_pyfunction!(nuc_apply, m)?)?;
+    m.add_function(wrap_pyfunction!(characterize, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate_acquisition_set, m)?)?;
+    m.add_function(wrap_pyfunction!(read_image, m)?)?;
+    m.add_function(wrap_pyfunction!(set_max_memory_bytes, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -45,6 +45,42 @@ def small_scene(small_sensor) -> eoir.Cube:
 
 
 def read_tiff_u16(path) -> np.ndarray:
+    """A 16-bit grey baseline TIFF (see :func:`read_tiff`)."""
+    a = read_tiff(path)
+    assert a.dtype == np.uint16
+    return a
+
+
+def read_tiff_f32(path) -> np.ndarray:
+    """A 32-bit float grey baseline TIFF (see :func:`read_tiff`)."""
+    a = read_tiff(path)
+    assert a.dtype == np.float32
+    return a
+
+
+def write_tiff_u16(path, image) -> None:
+    """A minimal baseline-TIFF writer (little-endian, uncompressed, 16-bit grey, one
+    strip), independent of eoir's writer, to hand frames to the CLI."""
+    a = np.ascontiguousarray(image, dtype="<u2")
+    h, w = a.shape
+    data = a.tobytes()
+    entries = [  # tag, type (3 SHORT, 4 LONG), value
+        (256, 4, w), (257, 4, h), (258, 3, 16), (259, 3, 1), (262, 3, 1),
+        (273, 4, 8), (277, 3, 1), (278, 4, h), (279, 4, len(data)), (339, 3, 1),
+    ]
+    ifd = 8 + len(data)
+    out = bytearray(b"II" + struct.pack("<HI", 42, ifd) + data)
+    out += struct.pack("<H", len(entries))
+    for tag, typ, value in entries:
+        if typ == 3:
+            out += struct.pack("<HHIHH", tag, typ, 1, value, 0)
+        else:
+            out += struct.pack("<HHII", tag, typ, 1, value)
+    out += struct.pack("<I", 0)
+    Path(path).write_bytes(bytes(out))
+
+
+def read_tiff(path) -> np.ndarray:
     """A minimal baseline-TIFF reader (uncompressed, 16-bit grey, strips), independent of
     eoir's own reader, to check the CLI's `dn.tiff`."""
     b = Path(path).read_bytes()
@@ -69,6 +105,11 @@ def read_tiff_u16(path) -> np.ndarray:
         return list(struct.unpack(fmt, b[value: value + count * size]))
 
     width, height = tags[256][2], tags[257][2]
-    assert tags[258][2] == 16 and tags.get(259, (3, 1, 1))[2] == 1
+    bits = tags[258][2]
+    fmt = tags.get(339, (3, 1, 1))[2]  # SampleFormat: 1 unsigned, 3 IEEE float
+    assert tags.get(259, (3, 1, 1))[2] == 1
     data = b"".join(b[o: o + c] for o, c in zip(values(273), values(279)))
-    return np.frombuffer(data, dtype=endian + "u2").reshape(height, width).astype(np.uint16)
+    if bits == 16 and fmt == 1:
+        return np.frombuffer(data, dtype=endian + "u2").reshape(height, width).astype(np.uint16)
+    assert bits == 32 and fmt == 3, (bits, fmt)
+    return np.frombuffer(data, dtype=endian + "f4").reshape(height, width).astype(np.float32)

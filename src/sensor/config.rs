@@ -373,6 +373,19 @@ impl SensorConfig {
         base_dir: PathBuf,
         overrides: &[String],
     ) -> Result<Self> {
+        let parsed = parse_overrides(overrides)?;
+        Self::from_toml_str_with(text, source, base_dir, &parsed)
+    }
+
+    /// As [`SensorConfig::from_toml_str`], with overrides already split into key paths
+    /// and values ([`Override`]; the Python API builds them from a dict, so no key or
+    /// value is ever parsed as TOML text).
+    pub fn from_toml_str_with(
+        text: &str,
+        source: &str,
+        base_dir: PathBuf,
+        overrides: &[Override],
+    ) -> Result<Self> {
         // Parse the text as written first, so errors point at its lines.
         let mut config: SensorConfig =
             toml::from_str(text).map_err(|e| toml_error(source, text, &e))?;
@@ -380,20 +393,11 @@ impl SensorConfig {
             let mut value: toml::Table =
                 toml::from_str(text).map_err(|e| toml_error(source, text, &e))?;
             for o in overrides {
-                apply_override(&mut value, o)?;
+                o.apply(&mut value)?;
             }
             config = toml::Value::Table(value)
                 .try_into()
-                .map_err(|e: toml::de::Error| {
-                    Error::format(
-                        source,
-                        format!(
-                            "after --set {}: {}",
-                            overrides.join(" --set "),
-                            crate::error::redact_quoted(e.message().trim(), 160, true)
-                        ),
-                    )
-                })?;
+                .map_err(|e: toml::de::Error| after_overrides(source, overrides, &e))?;
         }
         Self::finish(config, source, base_dir)
     }
@@ -403,26 +407,36 @@ impl SensorConfig {
     /// validates the result. `source` names it in errors; `base_dir` resolves relative
     /// paths.
     pub fn from_table(
-        mut table: toml::Table,
+        table: toml::Table,
         source: &str,
         base_dir: PathBuf,
         overrides: &[String],
     ) -> Result<Self> {
+        let parsed = parse_overrides(overrides)?;
+        Self::from_table_with(table, source, base_dir, &parsed)
+    }
+
+    /// As [`SensorConfig::from_table`], with overrides already split ([`Override`]).
+    pub fn from_table_with(
+        mut table: toml::Table,
+        source: &str,
+        base_dir: PathBuf,
+        overrides: &[Override],
+    ) -> Result<Self> {
         for o in overrides {
-            apply_override(&mut table, o)?;
+            o.apply(&mut table)?;
         }
         let config: SensorConfig =
             toml::Value::Table(table)
                 .try_into()
                 .map_err(|e: toml::de::Error| {
-                    let msg = crate::error::redact_quoted(e.message().trim(), 160, true);
                     if overrides.is_empty() {
-                        Error::format(source, msg)
-                    } else {
                         Error::format(
                             source,
-                            format!("after --set {}: {msg}", overrides.join(" --set ")),
+                            crate::error::redact_quoted(e.message().trim(), 160, true),
                         )
+                    } else {
+                        after_overrides(source, overrides, &e)
                     }
                 })?;
         Self::finish(config, source, base_dir)
@@ -775,58 +789,189 @@ fn floor_char_boundary(text: &str, mut i: usize) -> usize {
     i
 }
 
-/// Applies one override `a.b.c=value` to a parsed TOML table. The value is parsed as a
-/// TOML value (`2e-3`, `true`, `"text"`, `[1, 2]`, `{ kind = "constant", value = 1 }`); if
-/// that fails it is taken as a string. Missing intermediate tables are created, so
-/// `--set jitter.sigma_rad=1e-5` enables jitter. Whether the key exists is checked when the
-/// result is deserialised (unknown keys are errors).
+/// Applies one override `a.b.c=value` to a parsed TOML table (see [`Override::parse`]).
 pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
-    let (key, raw) = assignment.split_once('=').ok_or_else(|| {
-        Error::param(
-            "--set",
-            assignment,
-            "`section.key=value`, e.g. optics.f_number=2.5",
+    Override::parse(assignment)?.apply(table)
+}
+
+/// Most levels of tables and arrays an override value may nest (a sensor file's deepest
+/// field is three tables down; a value nested deeper is a mistake, not a configuration).
+pub const MAX_OVERRIDE_DEPTH: usize = 16;
+
+/// One override of a sensor field: the key path (`["detector", "integration_time_s"]`)
+/// and the value. Built from `key.path=value` text by [`Override::parse`] (the CLI's
+/// `--set`), or from a key path and an already typed value by [`Override::new`] (the
+/// Python API), where neither the key nor the value is ever parsed as TOML text, so a
+/// key holding `=`, a newline or a table header cannot reach another field.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Override {
+    /// Key path, outermost table first, never empty; each part a TOML bare key
+    /// (`A-Za-z0-9_-`).
+    path: Vec<String>,
+    /// The value set at the end of the path, nested at most [`MAX_OVERRIDE_DEPTH`] deep.
+    value: toml::Value,
+}
+
+impl Override {
+    /// An override of the field at the dotted `key` (`detector.integration_time_s`) with
+    /// `value`. Each part of the key must be a TOML bare key (letters, digits, `_`, `-`),
+    /// as every field of a sensor file is; the value may nest at most
+    /// [`MAX_OVERRIDE_DEPTH`] levels of arrays and tables.
+    pub fn new(key: &str, value: toml::Value) -> Result<Self> {
+        let path = key_path(key, "overrides")?;
+        check_depth(&path, &value, "overrides")?;
+        Ok(Override { path, value })
+    }
+
+    /// The key path, outermost table first.
+    pub fn path(&self) -> &[String] {
+        &self.path
+    }
+
+    /// The value.
+    pub fn value(&self) -> &toml::Value {
+        &self.value
+    }
+
+    /// Parses `a.b.c=value` (the CLI's `--set`). The key is split at the first `=`; the
+    /// value is read as one TOML value (`2e-3`, `true`, `"text"`, `[1, 2]`,
+    /// `{ kind = "constant", value = 1 }`) and, when it is not exactly one TOML value
+    /// (e.g. it holds a newline and a table header), taken as a string, so it can never
+    /// set a second field. Missing intermediate tables are created when applied, so
+    /// `--set jitter.sigma_rad=1e-5` enables jitter. Whether the key exists is checked
+    /// when the result is deserialised (unknown keys are errors).
+    pub fn parse(assignment: &str) -> Result<Self> {
+        let (key, raw) = assignment.split_once('=').ok_or_else(|| {
+            Error::param(
+                "--set",
+                crate::limits::escape_token(assignment),
+                "`section.key=value`, e.g. optics.f_number=2.5",
+            )
+        })?;
+        let path = key_path(key.trim(), "--set")?;
+        let raw = raw.trim();
+        let value = match toml::from_str::<toml::Table>(&format!("v = {raw}")) {
+            Ok(mut t) if t.len() == 1 => t
+                .remove("v")
+                .unwrap_or_else(|| toml::Value::String(raw.to_string())),
+            _ => toml::Value::String(raw.to_string()),
+        };
+        check_depth(&path, &value, "--set")?;
+        Ok(Override { path, value })
+    }
+
+    /// Sets the value in `table`, creating missing intermediate tables; an intermediate
+    /// key that holds a value rather than a table is an error naming it.
+    pub fn apply(&self, table: &mut toml::Table) -> Result<()> {
+        let Some((leaf, parents)) = self.path.split_last() else {
+            return Err(Error::param(
+                "overrides",
+                "an empty key path",
+                "a dotted key such as optics.f_number",
+            ));
+        };
+        let mut cur = table;
+        for (i, part) in parents.iter().enumerate() {
+            let entry = cur
+                .entry(part.clone())
+                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+            cur = match entry {
+                toml::Value::Table(t) => t,
+                other => {
+                    return Err(Error::param(
+                        self.path.join("."),
+                        crate::limits::escape_bounded(&self.value.to_string(), 80),
+                        format!(
+                            "`{}` is a value ({}), not a section",
+                            self.path[..=i].join("."),
+                            other.type_str()
+                        ),
+                    ))
+                }
+            };
+        }
+        cur.insert(leaf.clone(), self.value.clone());
+        Ok(())
+    }
+}
+
+impl std::fmt::Display for Override {
+    /// `a.b.c=value`, the value as TOML (at most 80 characters, control characters
+    /// escaped).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}={}",
+            self.path.join("."),
+            crate::limits::escape_bounded(&self.value.to_string(), 80)
         )
-    })?;
-    let key = key.trim();
-    let raw = raw.trim();
+    }
+}
+
+/// Splits a dotted key into its parts, each a non-empty TOML bare key; `what` names the
+/// setting in the error.
+fn key_path(key: &str, what: &str) -> Result<Vec<String>> {
     let parts: Vec<&str> = key.split('.').map(str::trim).collect();
-    if key.is_empty() || parts.iter().any(|p| p.is_empty()) {
+    let bare = |p: &str| {
+        !p.is_empty()
+            && p.chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+    };
+    if key.trim().is_empty() || !parts.iter().all(|p| bare(p)) {
         return Err(Error::param(
-            "--set",
-            assignment,
-            "a dotted key such as optics.f_number",
+            what,
+            crate::limits::escape_token(key),
+            "a dotted key of letters, digits, `_` and `-`, such as optics.f_number",
         ));
     }
-    let value = match toml::from_str::<toml::Table>(&format!("v = {raw}")) {
-        Ok(mut t) => t
-            .remove("v")
-            .unwrap_or_else(|| toml::Value::String(raw.to_string())),
-        Err(_) => toml::Value::String(raw.to_string()),
-    };
-    let mut cur = table;
-    for (i, part) in parts.iter().enumerate() {
-        if i + 1 == parts.len() {
-            cur.insert(part.to_string(), value);
-            return Ok(());
-        }
-        let entry = cur
-            .entry(part.to_string())
-            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-        cur = match entry {
-            toml::Value::Table(t) => t,
-            other => {
-                return Err(Error::param(
-                    "--set",
-                    assignment,
-                    format!(
-                        "`{}` is a value ({}), not a section",
-                        parts[..=i].join("."),
-                        other.type_str()
-                    ),
-                ))
-            }
-        };
+    Ok(parts.into_iter().map(str::to_string).collect())
+}
+
+/// Refuses a value nested deeper than [`MAX_OVERRIDE_DEPTH`]; `what` names the setting.
+fn check_depth(path: &[String], value: &toml::Value, what: &str) -> Result<()> {
+    if depth(value) > MAX_OVERRIDE_DEPTH {
+        return Err(Error::param(
+            format!("{what}[{}]", path.join(".")),
+            "a value nested deeper than the limit",
+            format!("at most {MAX_OVERRIDE_DEPTH} levels of lists and tables"),
+        ));
     }
     Ok(())
+}
+
+/// Nesting depth of a TOML value (a scalar is 0).
+fn depth(v: &toml::Value) -> usize {
+    // Iterative, so a hostile value cannot overflow the stack here.
+    let mut deepest = 0;
+    let mut stack: Vec<(&toml::Value, usize)> = vec![(v, 0)];
+    while let Some((v, d)) = stack.pop() {
+        deepest = deepest.max(d);
+        match v {
+            toml::Value::Array(a) => stack.extend(a.iter().map(|x| (x, d + 1))),
+            toml::Value::Table(t) => stack.extend(t.values().map(|x| (x, d + 1))),
+            _ => {}
+        }
+    }
+    deepest
+}
+
+/// Parses `--set` assignments.
+fn parse_overrides(overrides: &[String]) -> Result<Vec<Override>> {
+    overrides.iter().map(|o| Override::parse(o)).collect()
+}
+
+/// The error of a description that no longer deserialises after `overrides`.
+fn after_overrides(source: &str, overrides: &[Override], e: &toml::de::Error) -> Error {
+    Error::format(
+        source,
+        format!(
+            "after setting {}: {}",
+            overrides
+                .iter()
+                .map(ToString::to_string)
+                .collect::<Vec<_>>()
+                .join(", "),
+            crate::error::redact_quoted(e.message().trim(), 160, true)
+        ),
+    )
 }

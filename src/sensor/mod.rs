@@ -13,6 +13,6 @@ pub mod presets;
 pub mod resolved;
 
 pub use config::MotionConfig;
-pub use config::{apply_override, SensorConfig, SpectrumConfig};
+pub use config::{apply_override, Override, SensorConfig, SpectrumConfig};
 pub use otf::{AchromaticSampler, Component, FrequencyGrid, GridOtf, SystemOtf};
 pub use resolved::{Sensor, Spectra};

@@ -41,7 +41,7 @@ use std::path::{Path, PathBuf};
 use crate::error::{Error, Result};
 use crate::spectrum::Spectrum;
 
-use super::config::toml_error;
+use super::config::{toml_error, Override};
 use super::config::{CfaConfig, SensorConfig, SpectrumConfig};
 
 /// The embedded presets: (name, TOML text).
@@ -119,6 +119,16 @@ fn preset_names() -> String {
 /// choices and `--set` overrides, and validates it. A path that exists wins over a preset
 /// of the same name.
 pub fn load(spec: &str, options: &[String], overrides: &[String]) -> Result<SensorConfig> {
+    let overrides: Vec<Override> = overrides
+        .iter()
+        .map(|o| Override::parse(o))
+        .collect::<Result<_>>()?;
+    load_with(spec, options, &overrides)
+}
+
+/// As [`load`], with the overrides already split into key paths and typed values
+/// ([`Override`]), as the Python API gives them.
+pub fn load_with(spec: &str, options: &[String], overrides: &[Override]) -> Result<SensorConfig> {
     let path = Path::new(spec);
     if path.exists() {
         let text = crate::io::input::read_text(path)?;
@@ -159,7 +169,7 @@ fn load_text(
     source: &str,
     base_dir: PathBuf,
     options: &[String],
-    overrides: &[String],
+    overrides: &[Override],
 ) -> Result<SensorConfig> {
     let table: toml::Table = toml::from_str(text).map_err(|e| toml_error(source, text, &e))?;
     if !table.contains_key("options") && !table.contains_key("defaults") {
@@ -171,10 +181,10 @@ fn load_text(
             ));
         }
         // No options: parse the text directly so errors point at its lines.
-        return SensorConfig::from_toml_str(text, source, base_dir, overrides);
+        return SensorConfig::from_toml_str_with(text, source, base_dir, overrides);
     }
     let merged = apply_options(table, source, options)?;
-    SensorConfig::from_table(merged, source, base_dir, overrides)
+    SensorConfig::from_table_with(merged, source, base_dir, overrides)
 }
 
 /// The option declarations of a parsed sensor table: name → value → overlay.

@@ -238,3 +238,45 @@ fn photon_detector_curve_is_rejected_as_quantum_efficiency() {
         &["detector.quantum_efficiency", "ideal_qe"],
     );
 }
+
+/// Issue 39: an override's key is a key path and its value one TOML value; neither can
+/// smuggle a second assignment or a table header into the description.
+#[test]
+fn overrides_are_key_paths_and_single_values_never_toml_text() {
+    use eoir::sensor::Override;
+    // `--set`: a value holding a newline and a table header is not one TOML value; it is
+    // taken as a string, which the numeric field refuses, and f_number stays as written.
+    let base = parse(MINIMAL, &[]).unwrap();
+    let e = parse(
+        MINIMAL,
+        &["detector.integration_time_s=1e-3\n[optics]\nf_number=9"],
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("integration_time_s"), "{e}");
+    // The typed path (Python): a key with `=`, a newline or a header is refused outright.
+    for key in [
+        "detector.integration_time_s=1e-3\n[optics]\nf_number",
+        "optics.\"f_number\"",
+        "optics..f_number",
+        "",
+    ] {
+        let e = Override::new(key, toml::Value::Float(9.0))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("dotted key"), "{e}");
+        assert!(!e.contains('\n'), "{e}");
+    }
+    // A well-formed typed override sets exactly its field.
+    let o = Override::new("optics.f_number", toml::Value::Float(4.0)).unwrap();
+    let s = SensorConfig::from_toml_str_with(MINIMAL, "t", PathBuf::from("."), &[o]).unwrap();
+    assert_eq!(s.optics.f_number, 4.0);
+    assert_eq!(s.detector, base.detector);
+    // A value nested deeper than the limit is an error, not a stack overflow.
+    let mut v = toml::Value::Integer(1);
+    for _ in 0..10_000 {
+        v = toml::Value::Array(vec![v]);
+    }
+    let e = Override::new("optics.f_number", v).unwrap_err().to_string();
+    assert!(e.contains("levels"), "{e}");
+}
