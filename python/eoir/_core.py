@@ -279,6 +279,10 @@ class RunResult:
     config_toml : str
         The resolved sensor.
     warnings : list of str
+    line_of_sight : dict of numpy.ndarray or None
+        A moving camera's truth table (``los.csv``): ``frame``, ``row_first``, ``row_last``,
+        ``t_start_s``, ``t_end_s``, ``dx_px``, ``dy_px``, ``smear_px``; None for a still
+        camera.
     """
 
     UNITS = {
@@ -300,6 +304,10 @@ class RunResult:
         self.report = json.loads(d["report_json"])
         self.config_toml = d["config_toml"]
         self.warnings = list(d["warnings"])
+        los = d.get("line_of_sight")
+        self.line_of_sight = (
+            None if los is None else {k: np.asarray(v) for k, v in los.items()}
+        )
 
     def __repr__(self) -> str:
         return f"<eoir.RunResult dn {tuple(self.dn.shape)}, {len(self.warnings)} warnings>"
@@ -349,6 +357,7 @@ def run(
     nuc_degree: int = 1,
     calibration_temperatures_k=None,
     first_frame: int = 0,
+    sequence_frames: Optional[int] = None,
     as_dataset: bool = True,
 ):
     """Run radiance through a sensor: what ``eoir run`` computes, without files.
@@ -399,6 +408,13 @@ def run(
     first_frame : int, default 0
         Index in the whole sequence of this call's first frame: temporal noise is drawn per
         sequence frame, so a sequence run in pieces equals one run.
+    sequence_frames : int, optional
+        Frames of the whole sequence this call is a piece of (default
+        ``first_frame + frames``): a moving camera's random wander is drawn over the whole
+        sequence, so pieces agree with one run when each is told the total
+        (:func:`eoir.dask.run_frames` does). A moving camera is a sensor with a
+        ``[clock]`` and motion (``docs/motion.md``; MultimIR's default
+        ``sequence="aircraft"`` option drifts 2 px per frame).
     as_dataset : bool, default True
         Return an ``xarray.Dataset``; False returns a :class:`RunResult` of NumPy arrays.
 
@@ -410,7 +426,12 @@ def run(
         image dim names, angular coordinates in mrad; attrs ``sensor``,
         ``sensor_options``, ``seed``, ``first_frame``, ``frames``, ``calibrate``,
         ``nuc_degree``, ``input_units``, ``ifov_mrad``, ``eoir_version``, ``config_toml``
-        (resolved sensor), ``report`` (dict, ``report.json``), ``warnings``.
+        (resolved sensor), ``report`` (dict, ``report.json``), ``warnings``. A moving
+        camera adds its truth table (``los.csv``) as variables ``los_frame``,
+        ``los_row_first``, ``los_row_last``, ``los_t_start_s``, ``los_t_end_s``,
+        ``los_dx_px``, ``los_dy_px``, ``los_smear_px`` over dim ``los_window`` (one per frame,
+        or per row of each frame for a rolling shutter); :class:`RunResult` has it as
+        ``line_of_sight``, a dict of NumPy arrays (``None`` for a still camera).
 
     Raises
     ------
@@ -462,6 +483,8 @@ def run(
     seed = _checks.uint("seed", seed)
     frames = _checks.uint("frames", frames)
     first_frame = _checks.uint("first_frame", first_frame)
+    if sequence_frames is not None:
+        sequence_frames = _checks.uint("sequence_frames", sequence_frames)
     nuc_degree = _checks.uint("nuc_degree", nuc_degree)
     temps = None
     if calibration_temperatures_k is not None:
@@ -486,6 +509,7 @@ def run(
         _checks.real("range_m", range_m),
         units_text,
         calibration_temperatures_k=temps,
+        sequence_frames=sequence_frames,
     )
     squeeze = data.ndim == 3 and frames <= 1
     result = RunResult(d, squeeze)
@@ -512,7 +536,14 @@ def run(
         name: (getattr(result, name),) + RunResult.UNITS[name]
         for name in ("dn", "electrons_mean", "radiance", "temperature")
     }
-    return _xr.image_dataset(variables, dims, sensor.ifov_rad, attrs, frame_dim, first_frame)
+    ds = _xr.image_dataset(variables, dims, sensor.ifov_rad, attrs, frame_dim, first_frame)
+    if result.line_of_sight is not None:
+        units = {"t_start_s": "s", "t_end_s": "s", "dx_px": "px", "dy_px": "px", "smear_px": "px"}
+        for k, v in result.line_of_sight.items():
+            ds["los_" + k] = _xr.xarray().Variable(
+                "los_window", v, attrs={"units": units.get(k, "1")}
+            )
+    return ds
 
 
 def mtf(sensor: Sensor, freq_cy_per_mrad, wavelength_um: Optional[float] = None) -> Dict[str, Any]:

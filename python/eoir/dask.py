@@ -49,6 +49,8 @@ def _run_block(block, sensor, wavelength_um, fov_deg, seed, product, range_m, un
                nuc_degree, block_info=None):
     """One chunk of frames: ``first_frame`` is the chunk's offset in the whole sequence."""
     first = block_info[0]["array-location"][0][0] if block_info else 0
+    # The whole sequence's length: a moving camera's wander is drawn over all of it.
+    total = block_info[0]["shape"][0] if block_info else None
     calibrate = product in ("radiance", "temperature")
     r = eoir.run(
         sensor,
@@ -58,6 +60,7 @@ def _run_block(block, sensor, wavelength_um, fov_deg, seed, product, range_m, un
         seed=seed,
         calibrate=calibrate,
         first_frame=int(first),
+        sequence_frames=None if total is None else int(total),
         range_m=range_m,
         units=units,
         nuc_degree=nuc_degree,

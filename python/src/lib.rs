@@ -543,7 +543,8 @@ mod num_zero {
 #[pyfunction]
 #[pyo3(signature = (sensor, radiance, wavelength_um, fov_deg, seed=1, frames=1,
     calibrate=true, nuc_degree=1, first_frame=0, range_m=None, units="W m-2 sr-1 um-1",
-    fwhm_um=None, input_name="numpy array", calibration_temperatures_k=None))]
+    fwhm_um=None, input_name="numpy array", calibration_temperatures_k=None,
+    sequence_frames=None))]
 #[allow(clippy::too_many_arguments)]
 fn run<'py>(
     py: Python<'py>,
@@ -561,6 +562,7 @@ fn run<'py>(
     fwhm_um: Option<Vec<f64>>,
     input_name: &str,
     calibration_temperatures_k: Option<Vec<f64>>,
+    sequence_frames: Option<u64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let scale = parse_scale(units)?;
     let units = scale.units;
@@ -605,6 +607,7 @@ fn run<'py>(
         seed,
         frames,
         first_frame,
+        sequence_frames,
         input_name: source.clone(),
         calibration: calibrate
             .then(|| {
@@ -661,6 +664,26 @@ fn run<'py>(
     d.set_item("report_json", report)?;
     d.set_item("config_toml", guarded(|| out.sensor.to_toml_string())?)?;
     d.set_item("warnings", out.warnings)?;
+    // A moving camera's truth table (`los.csv`): one column per field.
+    let los = match &out.line_of_sight {
+        Some(rows) => {
+            let t = PyDict::new(py);
+            let col = |f: &dyn Fn(&eoir::pipeline::motion::TruthRow) -> f64| -> Vec<f64> {
+                rows.iter().map(f).collect()
+            };
+            t.set_item("frame", rows.iter().map(|r| r.frame).collect::<Vec<u64>>())?;
+            t.set_item("row_first", rows.iter().map(|r| r.rows.0).collect::<Vec<usize>>())?;
+            t.set_item("row_last", rows.iter().map(|r| r.rows.1).collect::<Vec<usize>>())?;
+            t.set_item("t_start_s", col(&|r| r.window_s.0))?;
+            t.set_item("t_end_s", col(&|r| r.window_s.1))?;
+            t.set_item("dx_px", col(&|r| r.displacement_px[0]))?;
+            t.set_item("dy_px", col(&|r| r.displacement_px[1]))?;
+            t.set_item("smear_px", col(&|r| r.smear_px))?;
+            Some(t)
+        }
+        None => None,
+    };
+    d.set_item("line_of_sight", los)?;
     Ok(d)
 }
 

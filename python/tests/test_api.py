@@ -183,6 +183,8 @@ def test_cube_write_read_round_trip(small_scene, tmp_path, ext):
 
 def test_sequence_and_frames(small_sensor, small_scene):
     c = small_scene
+    # A still camera (MultimIR's default aircraft clock drifts a static scene's frames).
+    small_sensor = eoir.load_sensor("multimir", options={"sequence": "still"}, overrides=SMALL)
     # A static scene exposed 3 times: identical mean, fixed pattern shared, noise independent.
     r = eoir.run(small_sensor, c, seed=4, frames=3, calibrate=False)
     assert r.dn.shape == (3, 32, 40)
@@ -274,3 +276,20 @@ def test_calibration_temperatures_default_to_the_sensor_range_and_can_be_given(s
     np.testing.assert_array_equal(given.dn, auto.dn)
     with pytest.raises(ValueError):
         eoir.run(small_sensor, small_scene, calibration_temperatures_k=[300.0, 300.0])
+
+
+def test_a_moving_camera_returns_its_truth_table(small_sensor, small_scene):
+    """MultimIR's default aircraft clock: a static scene drifts 2.0 px per frame (46.1 m/s
+    at 1900 m, 50 frames/s, 24 um / 100 mm), and the truth table says so."""
+    c = small_scene
+    r = eoir.run(small_sensor, c, seed=4, frames=2, calibrate=False, as_dataset=False)
+    los = r.line_of_sight
+    assert los is not None
+    assert list(los["frame"]) == [0, 1]
+    step = 46.1 / 1900.0 / 50.0 / (24e-6 / 0.1)
+    np.testing.assert_allclose(los["dx_px"], [0.0, step], atol=1e-9)
+    np.testing.assert_allclose(los["dy_px"], [0.0, 0.0], atol=1e-12)
+    # The frames moved: the mean images differ (a still camera's would be equal).
+    assert not np.array_equal(r.electrons_mean[0], r.electrons_mean[1])
+    ds = eoir.run(small_sensor, c, seed=4, frames=2, calibrate=False)
+    np.testing.assert_allclose(ds["los_dx_px"].values, los["dx_px"])

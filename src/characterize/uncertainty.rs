@@ -215,7 +215,7 @@ mod tests {
         assert!(rel(p["QE_percent"], want_qe) < 1e-6);
         // μ_e.min = √v/K + ½: ∂/∂v = 1/(2K√v), ∂/∂K = −√v/K².
         let want_min =
-            ((0.1 / (2.0 * 0.05 * 2.0)).powi(2) + (2.0 * 0.001 / 0.0025f64).powi(2)).sqrt();
+            ((0.1f64 / (2.0 * 0.05 * 2.0)).powi(2) + (2.0 * 0.001 / 0.0025f64).powi(2)).sqrt();
         assert!(
             rel(p["u_e_min_e"], want_min) < 1e-6,
             "{} {want_min}",

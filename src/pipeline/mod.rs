@@ -286,7 +286,6 @@ pub fn run(
     let n_frames = frame_count(input_frames, options.frames, options.first_frame)?;
     let motion = SequenceMotion::new(sensor, n_frames, input_frames, options)?;
     warnings.extend(still_camera_warning(sensor, n_frames));
-    let truth = motion.as_ref().map(|m| m.truth(n_frames));
     let imaging = ImagingStage::new(sensor, &meta, &geometry, options, motion)?;
     let setup_s = t_setup.elapsed().as_secs_f64();
     warnings.extend(imaging.sampling().warnings.iter().cloned());
@@ -294,6 +293,7 @@ pub fn run(
     warnings.extend(sensor.detector().warnings().iter().cloned());
     let active = imaging.bands_used();
     let run_bytes = check_budget(&imaging, &meta, sensor, n_frames)?;
+    let truth = imaging.motion().map(|m| m.truth(n_frames));
     let job = frames::FrameJob {
         stage: &imaging,
         meta: &meta,
