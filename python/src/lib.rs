@@ -1131,9 +1131,10 @@ fn edge_mtf<'py>(
     input_name: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
     use eoir::processing::edge_mtf::{interpolate, slanted_edge_mtf, Roi, OVERSAMPLING};
-    use eoir::processing::wiener::{replace_invalid_pixels, IMPULSE_K_SIGMA};
+    use eoir::processing::wiener::IMPULSE_K_SIGMA;
     let image = image.as_array().to_owned();
     let (rows, cols) = image.dim();
+    let full_scale = sensor.as_ref().map(|s| s.inner.detector().max_dn());
     let sensor_info = sensor.as_ref().map(|s| {
         (
             s.inner.name.clone(),
@@ -1162,7 +1163,19 @@ fn edge_mtf<'py>(
             width,
             height,
         });
-        let (clean, replaced) = replace_invalid_pixels(image.view(), IMPULSE_K_SIGMA)?;
+        // As `eoir edge-mtf` on an image without its run's instance: the clusters of
+        // dead, hot and stuck pixels found in the image, replaced by good neighbours.
+        let found = eoir::processing::bad_pixels::find_image_defects(
+            image.view(),
+            IMPULSE_K_SIGMA,
+            full_scale,
+        )?;
+        let replaced = found.defects.count();
+        let clean = if replaced > 0 {
+            eoir::processing::bad_pixels::replace(image.view(), &found.defects)?
+        } else {
+            image.clone()
+        };
         let m = slanted_edge_mtf(clean.view(), roi)?;
         let ifov_mrad = sensor_info.as_ref().map(|s| s.1);
         let report = serde_json::json!({
@@ -1334,12 +1347,8 @@ fn nuc_fit(
             let group = stack.slice(s![k * per..(k + 1) * per, .., ..]).to_owned();
             means.push(eoir::processing::mean_frame(group.view())?);
         }
-        // FOI eq. 4.1: the reference of level k is the array mean ⟨Y_k⟩.
-        let levels: Vec<(f64, ndarray::ArrayView2<f64>)> = means
-            .iter()
-            .map(|m| (m.mean().unwrap_or(0.0), m.view()))
-            .collect();
-        let mut coeffs = NucCoefficients::fit(&levels, degree)?;
+        // As `eoir nuc fit`: bad pixels first, then FOI eq. 4.1 on the good pixels (the
+        // reference of level k is their mean ⟨Y_k⟩).
         let cold = t
             .iter()
             .enumerate()
@@ -1355,6 +1364,16 @@ fn nuc_fit(
             means[warm].view(),
             &BadPixelCriteria::default(),
         )?;
+        let references: Vec<f64> = means
+            .iter()
+            .map(|m| eoir::processing::nuc::good_pixel_mean(m.view(), &det.map))
+            .collect::<eoir::error::Result<_>>()?;
+        let levels: Vec<(f64, ndarray::ArrayView2<f64>)> = references
+            .iter()
+            .zip(&means)
+            .map(|(r, m)| (*r, m.view()))
+            .collect();
+        let mut coeffs = NucCoefficients::fit(&levels, degree)?;
         coeffs.set_bad_pixels(&det.map)?;
         Ok(coeffs)
     })?;

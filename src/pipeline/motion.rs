@@ -114,13 +114,13 @@ impl SequenceMotion {
         let clock = Clock::new(clock_cfg, d.integration_time_s, d.rows, total)?;
         // The line of sight over the whole sequence, so that its pieces agree.
         let span = Clock::new(clock_cfg, d.integration_time_s, d.rows, whole)?.span_s();
-        let los = LineOfSight::new(
+        let los = LineOfSight::from_parts(
             config.trajectory.as_ref(),
             config.motion.as_ref().filter(|m| m.enabled),
             d.integration_time_s,
             seed,
             span,
-            Some(config.base_dir.as_path()),
+            sensor.measured_trajectory().cloned(),
         )?;
         if los.is_still() {
             return Ok(None);

@@ -48,6 +48,8 @@ pub struct Sensor {
     channels: Vec<Sensor>,
     white_balance: Option<[f64; 3]>,
     warnings: Vec<String>,
+    /// The measured line-of-sight trajectory (`trajectory.file`), read once here.
+    measured_trajectory: Option<crate::los::MeasuredTrajectory>,
 }
 
 impl Deref for Sensor {
@@ -140,6 +142,12 @@ impl Sensor {
             },
         )?;
         let warnings = config.warnings();
+        let measured_trajectory = match config.trajectory.as_ref().and_then(|t| t.file.as_ref()) {
+            Some(file) => Some(crate::los::MeasuredTrajectory::from_csv(
+                &crate::spectrum::resolve_path(&config.base_dir, file),
+            )?),
+            None => None,
+        };
         let mut channels = Vec::new();
         if let Some(cfa) = &config.cfa {
             let dir = &config.base_dir;
@@ -164,6 +172,7 @@ impl Sensor {
                     detector: detector.clone(),
                     channels: Vec::new(),
                     white_balance: None,
+                    measured_trajectory: measured_trajectory.clone(),
                     warnings: warnings.clone(),
                 });
             }
@@ -180,7 +189,14 @@ impl Sensor {
             channels,
             white_balance,
             warnings,
+            measured_trajectory,
         })
+    }
+
+    /// The measured line-of-sight trajectory of `trajectory.file`, read when the sensor
+    /// was built (`None` without one).
+    pub fn measured_trajectory(&self) -> Option<&crate::los::MeasuredTrajectory> {
+        self.measured_trajectory.as_ref()
     }
 
     /// Filter transmission × quantum efficiency (electrons per photon reaching the filter,
