@@ -77,12 +77,16 @@ fn dn_png_of_every_preset_demo_is_bright_and_spread() {
         };
         let (lo, hi) = (rank(0.005), rank(0.995));
         for (d, g) in dn.iter().zip(&grey) {
-            let expect = if hi > lo {
-                (255.0 * ((*d as f64 - lo) / (hi - lo)).clamp(0.0, 1.0)).round()
+            let exact = if hi > lo {
+                255.0 * ((*d as f64 - lo) / (hi - lo)).clamp(0.0, 1.0)
             } else {
                 0.0
             };
-            assert_eq!(*g as f64, expect, "{}: DN {d}", p.name);
+            // A value on a rounding edge (x.5 to within float rounding of the stretch's
+            // own arithmetic) may go either way; everywhere else the grey is exact.
+            let tie = (exact - exact.floor() - 0.5).abs() < 1e-9;
+            let ok = *g as f64 == exact.round() || (tie && *g as f64 == exact.floor());
+            assert!(ok, "{}: DN {d}: grey {g}, stretch {exact}", p.name);
         }
     }
 }
