@@ -142,7 +142,7 @@ pub fn edge_mtf(args: EdgeMtfArgs) -> Result<()> {
         "edge_contrast": m.contrast,
         "noise_rms": m.noise_rms,
         "pixels_replaced": replaced,
-        "defects": { "source": defects.source, "clusters": defects.clusters, "largest_cluster_px": defects.largest_cluster },
+        "defects": { "source": defects.source, "clusters": defects.clusters, "largest_cluster_px": defects.largest_cluster, "saturated_px": defects.saturated.count() },
         "sensor": sensor.as_ref().map(|s| s.name.clone()),
         "oversampling": eoir::processing::edge_mtf::OVERSAMPLING,
     });
