@@ -413,7 +413,7 @@ def run(
         ``first_frame + frames``): a moving camera's random wander is drawn over the whole
         sequence, so pieces agree with one run when each is told the total
         (:func:`eoir.dask.run_frames` does). A moving camera is a sensor with a
-        ``[clock]`` and motion (``docs/motion.md``; MultimIR's default
+        ``[clock]`` and motion (``docs/motion.md``; MultimIR's
         ``sequence="aircraft"`` option drifts 2 px per frame).
     as_dataset : bool, default True
         Return an ``xarray.Dataset``; False returns a :class:`RunResult` of NumPy arrays.

@@ -119,7 +119,7 @@ def test_bad_values_raise_value_error(small_sensor, small_scene):
 def test_load_sensor_options_overrides_and_properties():
     s = eoir.load_sensor("multimir", options={"filter": "3", "optics": "15mm"},
                          overrides={"detector.integration_time_s": 2e-3})
-    assert s.options == {"filter": "3", "optics": "15mm"}
+    assert s.options == {"filter": "3", "optics": "15mm", "sequence": "still"}
     assert s.integration_time_s == 2e-3
     assert s.ifov_rad == pytest.approx(s.pitch_m / s.focal_length_m, rel=1e-15)
     assert s.aperture_diameter_m == pytest.approx(s.focal_length_m / s.f_number, rel=1e-15)
@@ -183,8 +183,6 @@ def test_cube_write_read_round_trip(small_scene, tmp_path, ext):
 
 def test_sequence_and_frames(small_sensor, small_scene):
     c = small_scene
-    # A still camera (MultimIR's default aircraft clock drifts a static scene's frames).
-    small_sensor = eoir.load_sensor("multimir", options={"sequence": "still"}, overrides=SMALL)
     # A static scene exposed 3 times: identical mean, fixed pattern shared, noise independent.
     r = eoir.run(small_sensor, c, seed=4, frames=3, calibrate=False)
     assert r.dn.shape == (3, 32, 40)
@@ -279,9 +277,12 @@ def test_calibration_temperatures_default_to_the_sensor_range_and_can_be_given(s
 
 
 def test_a_moving_camera_returns_its_truth_table(small_sensor, small_scene):
-    """MultimIR's default aircraft clock: a static scene drifts 2.0 px per frame (46.1 m/s
-    at 1900 m, 50 frames/s, 24 um / 100 mm), and the truth table says so."""
+    """MultimIR's aircraft clock: a static scene drifts 2.0 px per frame (46.1 m/s at
+    1900 m, 50 frames/s, 24 um / 100 mm), and the truth table says so."""
     c = small_scene
+    aircraft = eoir.load_sensor("multimir", options={"sequence": "aircraft"}, overrides=SMALL)
+    assert eoir.run(small_sensor, c, frames=2, calibrate=False, as_dataset=False).line_of_sight is None
+    small_sensor = aircraft
     r = eoir.run(small_sensor, c, seed=4, frames=2, calibrate=False, as_dataset=False)
     los = r.line_of_sight
     assert los is not None

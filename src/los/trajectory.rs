@@ -19,10 +19,7 @@ use crate::error::{require_non_negative, require_positive, Error, Result};
 pub struct MotionConfig {
     /// Include this component (`false` keeps the section but leaves it out: no smear in
     /// the cascade and no drift over a sequence, e.g. for the unblurred reference of a run).
-    #[serde(
-        default = "crate::sensor::config::yes",
-        skip_serializing_if = "crate::sensor::config::is_true"
-    )]
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
     pub enabled: bool,
     /// Angular smear length during one integration, rad.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -39,6 +36,16 @@ pub struct MotionConfig {
     /// Direction of motion in the image, degrees from +x (columns) toward +y (rows).
     #[serde(default)]
     pub direction_deg: f64,
+}
+
+/// Serde default of `enabled`.
+fn yes() -> bool {
+    true
+}
+
+/// Whether `enabled` is the default (then not written).
+fn is_true(v: &bool) -> bool {
+    *v
 }
 
 impl MotionConfig {

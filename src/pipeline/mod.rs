@@ -285,13 +285,9 @@ pub fn run(
     let input_frames = reader.frames();
     let n_frames = frame_count(input_frames, options.frames, options.first_frame)?;
     let motion = SequenceMotion::new(sensor, n_frames, input_frames, options)?;
-    warnings.extend(still_camera_warning(sensor, n_frames));
     let imaging = ImagingStage::new(sensor, &meta, &geometry, options, motion)?;
     let setup_s = t_setup.elapsed().as_secs_f64();
-    warnings.extend(imaging.sampling().warnings.iter().cloned());
-    warnings.extend(imaging.unread_bands_warning(&meta));
-    warnings.extend(sensor.detector().warnings().iter().cloned());
-    let active = imaging.bands_used();
+    warnings.extend(setup_warnings(&imaging, &meta, sensor, n_frames));
     let run_bytes = check_budget(&imaging, &meta, sensor, n_frames)?;
     let truth = imaging.motion().map(|m| m.truth(n_frames));
     let job = frames::FrameJob {
@@ -323,7 +319,7 @@ pub fn run(
         meta: &meta,
         geometry: &geometry,
         frames: n_frames,
-        bands_used: active,
+        bands_used: imaging.bands_used(),
         sampling: imaging.sampling(),
         imaging: &done.stats,
         wrap_tolerance: options.wrap_tolerance,
@@ -351,6 +347,21 @@ pub fn run(
         warnings,
         line_of_sight: truth,
     })
+}
+
+/// What the set-up found for the user: the sampling's and the detector model's warnings,
+/// input bands never read, and a still camera asked for a moving sequence.
+fn setup_warnings(
+    imaging: &ImagingStage,
+    meta: &CubeMeta,
+    sensor: &Sensor,
+    frames: usize,
+) -> Vec<String> {
+    let mut w = imaging.sampling().warnings.clone();
+    w.extend(imaging.unread_bands_warning(meta));
+    w.extend(sensor.detector().warnings().iter().cloned());
+    w.extend(still_camera_warning(sensor, frames));
+    w
 }
 
 /// A sequence of several frames whose sensor has motion but no `[clock]`: every frame is

@@ -200,10 +200,6 @@ pub fn run_args<'a>(input: &'a str, out: &'a str, extra: &[&'a str]) -> Vec<&'a 
         "run",
         "--sensor",
         "multimir",
-        // A still camera: MultimIR's default aircraft clock would drift the 16 px window
-        // off these unmargined scenes over a long sequence.
-        "--option",
-        "sequence=still",
         "--quiet",
         "--set",
         "detector.rows=16",

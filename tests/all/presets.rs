@@ -86,8 +86,9 @@ fn every_preset_and_option_combination_loads_and_validates() {
         let defaults: Vec<String> = p.defaults.iter().map(|(k, v)| format!("{k}={v}")).collect();
         assert_eq!(presets::load(&p.name, &defaults, &[]).unwrap(), plain);
     }
-    // 4 filters x 2 optics + 3 bands + 1 + 3 channels + 1 + 3 channels.
-    assert_eq!(count, 8 + 3 + 1 + 3 + 1 + 3);
+    // 4 filters x 2 optics x 2 sequence clocks + 3 bands + 1 + 3 channels + 1
+    // + 3 channels x 2 shutters.
+    assert_eq!(count, 16 + 3 + 1 + 3 + 1 + 6);
 }
 
 #[test]

@@ -221,7 +221,17 @@ fn demo_scene_is_sized_like_scene() {
     let mut a = vec!["demo", "-o", "demo", "--quiet", "--sensor", "qwip"];
     a.extend(window);
     ok(&eoir(d, &a), "demo");
-    let mut a = vec!["scene", "thermal", "-o", "s.hdr", "--sensor", "qwip"];
+    // The demo keeps 2 samples per pixel; `eoir scene` picks k from the optics (4 here).
+    let mut a = vec![
+        "scene",
+        "thermal",
+        "-o",
+        "s.hdr",
+        "--sensor",
+        "qwip",
+        "--oversampling",
+        "2",
+    ];
     a.extend(window);
     ok(&eoir(d, &a), "scene");
     let demo = report(&d.join("demo"));

@@ -109,11 +109,11 @@ fn every_thermal_preset_and_option_writes_temperature_products() {
             runs.push(what);
         }
     }
-    // MultimIR thermal filters 3 and 4 × 2 optics (filters 1 and 2 are SWIR, below 3 µm:
-    // no temperature), Emerald 3 bands, QWIP.
-    assert_eq!(runs.len(), 8, "{runs:?}");
+    // MultimIR thermal filters 3 and 4 × 2 optics × 2 sequence clocks (filters 1 and 2 are
+    // SWIR, below 3 µm: no temperature), Emerald 3 bands, QWIP.
+    assert_eq!(runs.len(), 12, "{runs:?}");
     for must in [
-        "multimir [\"filter=3\", \"optics=15mm\"]",
+        "multimir [\"filter=3\", \"optics=15mm\", \"sequence=still\"]",
         "emerald [\"band=2\"]",
         "qwip []",
     ] {
