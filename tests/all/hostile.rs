@@ -446,6 +446,9 @@ fn non_finite_and_impossible_values_are_errors_naming_the_setting() {
             "detector.cols=4",
             "--set",
             "detector.bits=1",
+            // The preset's 16 DN black level does not fit a 1-bit ADC.
+            "--set",
+            "detector.offset_dn=0",
             "--fov-deg",
             "0.2,0.2",
             "vis.hdr",
