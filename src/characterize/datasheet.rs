@@ -38,6 +38,9 @@ pub fn write_outputs(c: &Characterization, out: &Path, title: &str) -> Result<()
 }
 
 /// [`write_outputs`] into the directory `out` itself (the product set's staging place).
+/// The abscissa a plot takes from each level of the set.
+type LevelAxis = Box<dyn Fn(&super::analysis::PairLevel) -> f64>;
+
 fn write_into(c: &Characterization, out: &Path, title: &str) -> Result<()> {
     crate::io::output::create_dir_all_guarded(out)?;
     let mut json = serde_json::to_string_pretty(c)
@@ -246,7 +249,7 @@ fn write_linearity(c: &Characterization, path: &Path) -> Result<Option<String>> 
         .levels
         .iter()
         .any(|l| l.exposure_ns != c.levels[0].exposure_ns);
-    let (x_of, x_label): (Box<dyn Fn(&super::analysis::PairLevel) -> f64>, &str) = if with_photons {
+    let (x_of, x_label): (LevelAxis, &str) = if with_photons {
         (
             Box::new(|l| l.photons_per_pixel.unwrap_or(f64::NAN)),
             "photons per pixel μₚ",
@@ -524,9 +527,9 @@ fn page(c: &Characterization, title: &str, figures: &[(&str, &str, String)]) -> 
     }
     let mut figs = String::new();
     for (name, caption, uri) in figures {
-        let _ = write!(
+        let _ = writeln!(
             figs,
-            "<figure><h2>{name}</h2><img alt=\"{name}\" src=\"{uri}\"><figcaption>{}</figcaption></figure>\n",
+            "<figure><h2>{name}</h2><img alt=\"{name}\" src=\"{uri}\"><figcaption>{}</figcaption></figure>",
             escape(caption)
         );
     }

@@ -712,11 +712,7 @@ fn section_detector(h: &mut String, facts: &Facts) {
 /// Calibration (thermal sensors): NUC, blackbody levels, NETD, bad pixels, residual
 /// non-uniformity, pixels without temperature.
 fn section_calibration(h: &mut String, facts: &Facts) {
-    if !facts
-        .r
-        .pointer("/calibration")
-        .is_some_and(|c| !c.is_null())
-    {
+    if facts.r.pointer("/calibration").is_none_or(|c| c.is_null()) {
         return;
     }
     let f = |p: &str| facts.f(p);

@@ -497,7 +497,7 @@ fn bootstrap(
     let mut nyq = Vec::new();
     for _ in 0..BOOTSTRAP_REPLICATES {
         let rows: Vec<usize> = (0..nr)
-            .map(|_| ((splitmix64(&mut state) >> 32) * nr as u64 >> 32) as usize)
+            .map(|_| (((splitmix64(&mut state) >> 32) * nr as u64) >> 32) as usize)
             .collect();
         if let Some((_, f, m, _)) = esf_mtf(data, &rows, line, cos_t, half_bins) {
             m50.extend(crossing(&f, &m, 0.5));

@@ -67,7 +67,7 @@ pub const MAX_GRID_BANDS: usize = 121;
 /// `None` for an unbounded or invalid cutoff.
 pub fn oversampling_for_cutoff(ifov_rad: f64, cutoff_cy_per_rad: f64) -> Option<usize> {
     let k = (2.0 * ifov_rad * cutoff_cy_per_rad * (1.0 - 1e-12)).ceil();
-    (k.is_finite() && k >= 0.0 && k < 1e6).then(|| (k as usize).max(1))
+    (k.is_finite() && (0.0..1e6).contains(&k)).then(|| (k as usize).max(1))
 }
 
 /// The oversampling `eoir scene` uses when none is given: [`oversampling_for_cutoff`] for
