@@ -117,7 +117,8 @@ fn preset_names() -> String {
 
 /// Loads a sensor given as a file path or a preset name, with `--option name=value`
 /// choices and `--set` overrides, and validates it. A path that exists wins over a preset
-/// of the same name.
+/// of the same name, except a folder (`--sensor qwip` beside an output folder `qwip/`
+/// means the preset).
 pub fn load(spec: &str, options: &[String], overrides: &[String]) -> Result<SensorConfig> {
     let overrides: Vec<Override> = overrides
         .iter()
@@ -130,7 +131,10 @@ pub fn load(spec: &str, options: &[String], overrides: &[String]) -> Result<Sens
 /// ([`Override`]), as the Python API gives them.
 pub fn load_with(spec: &str, options: &[String], overrides: &[Override]) -> Result<SensorConfig> {
     let path = Path::new(spec);
-    if path.exists() {
+    // A folder that happens to share a preset's name (e.g. an earlier `-o qwip`) is not a
+    // sensor file: the preset is meant.
+    let shadowed_preset = path.is_dir() && preset_text(spec).is_some();
+    if path.exists() && !shadowed_preset {
         let text = crate::io::input::read_text(path)?;
         let base_dir = path
             .parent()

@@ -452,3 +452,23 @@ fn bayer_channels_are_the_chain_times_each_colour_filter() {
         assert!((r.eval(l) - expect).abs() < 1e-4, "at {l}");
     }
 }
+
+/// A folder named like a preset (an earlier run's `-o qwip`) does not hide the preset; a
+/// folder given by any other spelling is still an error naming it.
+#[test]
+fn a_folder_named_like_a_preset_means_the_preset() {
+    let dir = tempfile::tempdir().unwrap();
+    let qwip = dir.path().join("qwip");
+    std::fs::create_dir(&qwip).unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_eoir"))
+        .args(["sensors", "show", "qwip"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("name = \"qwip\""));
+    let e = presets::load(qwip.to_str().unwrap(), &[], &[])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("qwip"), "{e}");
+}
