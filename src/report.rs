@@ -330,12 +330,21 @@ pub fn saturation_warning(
     let mut remedies = Vec::new();
     if adc > 0 {
         match &d.auto_gain {
-            Some(a) => remedies.push(format!(
-                "{:.2} % at the ADC maximum ({} DN): lower `detector.auto_gain.fraction` (now {}) or raise `detector.auto_gain.reference_temperature_k` — the auto gain rescales K, so a shorter integration time does not help there",
-                100.0 * adc as f64 / n,
-                d.max_dn(),
-                a.fraction
-            )),
+            Some(a) => {
+                use crate::detector::config::AutoGainReference as R;
+                // The second remedy is the reference the gain is set from.
+                let raise = match a.reference {
+                    Some(R::SceneMean) => "",
+                    Some(R::ReflectedSun) => " or raise `detector.auto_gain.reflectance`",
+                    _ => " or raise `detector.auto_gain.reference_temperature_k`",
+                };
+                remedies.push(format!(
+                    "{:.2} % at the ADC maximum ({} DN): lower `detector.auto_gain.fraction` (now {}){raise} — the auto gain rescales K, so a shorter integration time does not help there",
+                    100.0 * adc as f64 / n,
+                    d.max_dn(),
+                    a.fraction
+                ))
+            }
             None => remedies.push(format!(
                 "{:.2} % at the ADC maximum ({} DN): lower `detector.gain_dn_per_e` or shorten `detector.integration_time_s` (now {} s)",
                 100.0 * adc as f64 / n,
