@@ -19,6 +19,38 @@ use crate::radiometry;
 use crate::scene::{CubeMeta, Geometry};
 use crate::sensor::Sensor;
 
+/// The report's `focal_plane` section (docs/focal-plane.md).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FocalPlaneReport {
+    /// The effects on: `readout_noise`, `ipc`, `rts`, `persistence`, `drift`.
+    pub effects: Vec<String>,
+    /// Number of RTS pixels (with `[detector.rts]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rts_pixels: Option<usize>,
+    /// The signal the drift figures are for: the first frame's mean, e⁻.
+    pub signal_e: f64,
+    /// Temporal noise at that signal, e⁻ rms.
+    pub temporal_noise_e: f64,
+    /// With `[detector.drift]`: per frame, the residual non-uniformity since a two-point
+    /// NUC at the sequence start.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub drift: Option<Vec<DriftPoint>>,
+}
+
+/// The residual non-uniformity a drifting fixed pattern leaves at one frame.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DriftPoint {
+    /// Time since the NUC (the frame's start), s.
+    pub time_since_nuc_s: f64,
+    /// Expected spatial σ of the drift since the NUC (the drift model's quadrature sum), e⁻.
+    pub residual_nonuniformity_e_expected: f64,
+    /// Spatial σ measured on the drift applied to this frame, e⁻.
+    pub residual_nonuniformity_e_measured: f64,
+    /// NETD at 300 K with the measured residual added in quadrature to the temporal
+    /// noise, mK (thermal sensors with a calibration).
+    pub netd_with_spatial_noise_mk: Option<f64>,
+}
+
 /// Everything one run reports (`report.json`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RunReport {
@@ -47,6 +79,10 @@ pub struct RunReport {
     pub calibration: Option<CalibrationReport>,
     /// Warnings collected on the way.
     pub warnings: Vec<String>,
+    /// The focal plane's effects beyond the per-pixel chain (readout-ordered noise, IPC,
+    /// RTS pixels, persistence, drift); absent when none is on (docs/focal-plane.md).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub focal_plane: Option<FocalPlaneReport>,
     /// How the run was executed (threads, frames imaged at once); like the timings, it
     /// does not change any product.
     pub execution: ExecutionReport,
@@ -474,6 +510,7 @@ impl RunReport {
             },
             calibration: f.calibration,
             warnings: f.warnings,
+            focal_plane: None,
             execution: f.execution,
             timings_s: Timings {
                 read: f.imaging.read_s,

@@ -283,6 +283,11 @@ class RunResult:
         A moving camera's truth table (``los.csv``): ``frame``, ``row_first``, ``row_last``,
         ``t_start_s``, ``t_end_s``, ``dx_px``, ``dy_px``, ``smear_px``; None for a still
         camera.
+    focal_plane : dict of numpy.ndarray or None
+        The focal plane's truth (docs/focal-plane.md): ``rts_row``, ``rts_col``
+        ``[pixel]``, ``rts_high_fraction`` and ``rts_high_at_readout`` ``[frame, pixel]``,
+        ``trapped_e``, ``drift_gain``, ``drift_offset_e`` ``[frame, row, col]`` — each only
+        when its effect is on; None when the detector has no memory.
     """
 
     UNITS = {
@@ -308,6 +313,8 @@ class RunResult:
         self.line_of_sight = (
             None if los is None else {k: np.asarray(v) for k, v in los.items()}
         )
+        fp = d.get("focal_plane")
+        self.focal_plane = None if fp is None else {k: np.asarray(v) for k, v in fp.items()}
 
     def __repr__(self) -> str:
         return f"<eoir.RunResult dn {tuple(self.dn.shape)}, {len(self.warnings)} warnings>"
@@ -543,6 +550,17 @@ def run(
             ds["los_" + k] = _xr.xarray().Variable(
                 "los_window", v, attrs={"units": units.get(k, "1")}
             )
+    if result.focal_plane is not None:
+        fp = result.focal_plane
+        frame = frame_dim or "frame"
+        for k, v in fp.items():
+            if k in ("rts_row", "rts_col"):
+                ds[k] = _xr.xarray().Variable("rts_pixel", v)
+            elif k.startswith("rts_"):
+                ds[k] = _xr.xarray().Variable((frame, "rts_pixel"), v)
+            else:
+                units = {"trapped_e": "e-", "drift_offset_e": "e-", "drift_gain": "1"}[k]
+                ds[k] = _xr.xarray().Variable((frame,) + tuple(dims), v, attrs={"units": units})
     return ds
 
 

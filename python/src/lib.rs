@@ -684,7 +684,48 @@ fn run<'py>(
         None => None,
     };
     d.set_item("line_of_sight", los)?;
+    d.set_item("focal_plane", focal_plane_dict(py, out.focal_plane.as_ref())?)?;
     Ok(d)
+}
+
+/// The focal plane's truth (`rts.csv`, `trapped_e.npy`, `drift_*.npy`) as NumPy arrays:
+/// `rts_row`, `rts_col` `[pixel]`, `rts_high_fraction` `[frame, pixel]`,
+/// `rts_high_at_readout` `[frame, pixel]` (bool), `trapped_e`, `drift_gain`,
+/// `drift_offset_e` `[frame, row, col]`; each only when its effect is on. `None` without a
+/// focal-plane memory.
+fn focal_plane_dict<'py>(
+    py: Python<'py>,
+    truth: Option<&eoir::pipeline::focal_plane::FocalPlaneTruth>,
+) -> PyResult<Option<Bound<'py, PyDict>>> {
+    let Some(t) = truth else { return Ok(None) };
+    let d = PyDict::new(py);
+    let n = t.frames.len();
+    let px = t.rts_pixels.len();
+    if t.frames.iter().all(|f| f.rts.is_some()) && n > 0 {
+        d.set_item("rts_row", t.rts_pixels.iter().map(|p| p / t.cols).collect::<Vec<_>>())?;
+        d.set_item("rts_col", t.rts_pixels.iter().map(|p| p % t.cols).collect::<Vec<_>>())?;
+        let frac = Array2::from_shape_fn((n, px), |(k, i)| {
+            t.frames[k].rts.as_ref().map_or(0.0, |r| r.high_fraction[i])
+        });
+        let high = Array2::from_shape_fn((n, px), |(k, i)| {
+            t.frames[k].rts.as_ref().is_some_and(|r| r.high_at_readout[i])
+        });
+        d.set_item("rts_high_fraction", frac.into_pyarray(py))?;
+        d.set_item("rts_high_at_readout", high.into_pyarray(py))?;
+    }
+    let trapped: Option<Vec<&Array2<f32>>> = t.frames.iter().map(|f| f.trapped_e.as_ref()).collect();
+    if let Some(p) = trapped.filter(|p| !p.is_empty()) {
+        d.set_item("trapped_e", stack(&p).into_pyarray(py))?;
+    }
+    let drift: Option<Vec<&(Array2<f32>, Array2<f32>)>> =
+        t.frames.iter().map(|f| f.drift.as_ref()).collect();
+    if let Some(p) = drift.filter(|p| !p.is_empty()) {
+        let gains: Vec<&Array2<f32>> = p.iter().map(|(g, _)| g).collect();
+        let offsets: Vec<&Array2<f32>> = p.iter().map(|(_, o)| o).collect();
+        d.set_item("drift_gain", stack(&gains).into_pyarray(py))?;
+        d.set_item("drift_offset_e", stack(&offsets).into_pyarray(py))?;
+    }
+    Ok(Some(d))
 }
 
 /// A cube's arrays and metadata as a dict (`radiance` `[band, row, col]`, or

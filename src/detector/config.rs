@@ -116,6 +116,24 @@ pub struct DetectorConfig {
     /// [`AutoGainConfig`]); excludes `gain_dn_per_e`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub auto_gain: Option<AutoGainConfig>,
+    /// Readout-ordered correlated noise and crosstalk between outputs (see
+    /// [`super::readout::ReadoutNoiseConfig`]; docs/focal-plane.md).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub readout_noise: Option<super::readout::ReadoutNoiseConfig>,
+    /// Random telegraph pixels (see [`super::rts::RtsConfig`]; needs `[clock]`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rts: Option<super::rts::RtsConfig>,
+    /// Persistence: charge trapped in bright frames and released later (see
+    /// [`super::persistence::PersistenceConfig`]; needs `[clock]`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub persistence: Option<super::persistence::PersistenceConfig>,
+    /// Inter-pixel capacitance (see [`super::ipc::IpcConfig`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ipc: Option<super::ipc::IpcConfig>,
+    /// Drift of the fixed pattern over the sequence (see [`super::drift::DriftConfig`];
+    /// needs `[clock]`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drift: Option<super::drift::DriftConfig>,
 }
 
 fn footprint_on() -> bool {
@@ -522,6 +540,21 @@ pub fn validate_effects(d: &DetectorConfig) -> Result<()> {
             0.0,
             1.0,
         )?;
+    }
+    if let Some(r) = &d.readout_noise {
+        r.validate(d.rows, d.cols)?;
+    }
+    if let Some(r) = &d.rts {
+        r.validate()?;
+    }
+    if let Some(p) = &d.persistence {
+        p.validate()?;
+    }
+    if let Some(i) = &d.ipc {
+        i.validate()?;
+    }
+    if let Some(x) = &d.drift {
+        x.validate()?;
     }
     if let Some(a) = &d.auto_gain {
         if d.gain_dn_per_e.is_some() {

@@ -32,9 +32,16 @@
 //! [`DetectorModel::temporal_noise_e`] / [`DetectorModel::temporal_noise_dn`].
 
 pub mod config;
+pub mod drift;
 mod fpn;
 mod gain;
+pub mod ipc;
+pub mod memory;
+pub mod persistence;
+pub mod readout;
 pub(crate) mod rng;
+pub mod rts;
+mod staged;
 
 use std::path::Path;
 
@@ -53,6 +60,7 @@ pub use config::{
     DetectorConfig, FpnConfig, NonlinearityConfig,
 };
 pub use gain::{background_electrons, reference_electrons, REFLECTIVE_LIMIT_UM};
+pub use staged::FrameExtras;
 
 use rng::{temporal_stream, Effect};
 
@@ -108,6 +116,11 @@ pub struct DetectorModel {
     nonlinearity: Option<config::NonlinearityConfig>,
     defects: Option<config::DefectsConfig>,
     defect_file: Option<Array2<u8>>,
+    readout_noise: Option<readout::ReadoutNoiseConfig>,
+    ipc_kernel: Option<[[f64; 3]; 3]>,
+    rts: Option<rts::RtsConfig>,
+    persistence: Option<persistence::PersistenceConfig>,
+    drift: Option<drift::DriftConfig>,
     auto_gain_reference: Option<(AutoGainReference, f64)>,
     scene_gain_pending: Option<f64>,
     warnings: Vec<String>,
@@ -198,6 +211,11 @@ impl DetectorModel {
             nonlinearity: d.nonlinearity.clone(),
             defects: d.defects.clone(),
             defect_file,
+            readout_noise: d.readout_noise.clone(),
+            ipc_kernel: d.ipc.as_ref().map(ipc::ipc_kernel),
+            rts: d.rts.clone(),
+            persistence: d.persistence.clone(),
+            drift: d.drift.clone(),
             auto_gain_reference: None,
             scene_gain_pending: None,
             warnings: Vec::new(),
@@ -231,6 +249,39 @@ impl DetectorModel {
             ));
         }
         Ok(model)
+    }
+
+    /// `true` when an effect couples pixels within a frame (inter-pixel capacitance,
+    /// readout-ordered noise, crosstalk between outputs): the frame is then exposed in
+    /// whole-frame stages ([`staged`]) rather than row by row.
+    pub fn couples_pixels(&self) -> bool {
+        self.ipc_kernel.is_some() || self.readout_noise.is_some()
+    }
+
+    /// The focal-plane effects with a memory across a sequence (RTS pixels, persistence,
+    /// drift of the fixed pattern): `(rts, persistence, drift)`, each `None` when off.
+    pub fn memory_effects(
+        &self,
+    ) -> (
+        Option<&rts::RtsConfig>,
+        Option<&persistence::PersistenceConfig>,
+        Option<&drift::DriftConfig>,
+    ) {
+        (
+            self.rts.as_ref(),
+            self.persistence.as_ref(),
+            self.drift.as_ref(),
+        )
+    }
+
+    /// The readout-ordered noise and crosstalk configuration, if any.
+    pub fn readout_noise(&self) -> Option<&readout::ReadoutNoiseConfig> {
+        self.readout_noise.as_ref()
+    }
+
+    /// The inter-pixel capacitance kernel, if any (Kannawadi et al. 2016).
+    pub fn ipc_kernel(&self) -> Option<&[[f64; 3]; 3]> {
+        self.ipc_kernel.as_ref()
     }
 
     /// The conversion gain K that the auto-gain reference `a` gives this model (its dark,
@@ -531,6 +582,9 @@ impl DetectorInstance {
                 "a finite number of electrons",
             ));
         }
+        if m.couples_pixels() {
+            return self.expose_staged(mean_e, exposure, frame_index, &FrameExtras::default());
+        }
         let cols = m.cols;
         let rows_out: Vec<Vec<u16>> = (0..m.rows)
             .into_par_iter()
@@ -539,6 +593,31 @@ impl DetectorInstance {
         let data: Vec<u16> = rows_out.into_iter().flatten().collect();
         Array2::from_shape_vec((m.rows, cols), data)
             .map_err(|e| Error::OutOfRange(format!("detector frame assembly: {e}")))
+    }
+
+    /// As [`expose`](Self::expose), with what the focal plane's memory adds to this frame
+    /// (`extras`, from [`memory::FocalPlaneMemory::step`]): RTS steps, persistence, drift.
+    /// Empty extras give exactly [`expose`](Self::expose).
+    ///
+    /// Errors: wrong shapes, or a non-finite value in `mean_e`.
+    pub fn expose_with(
+        &self,
+        mean_e: &Array2<f64>,
+        frame_index: u64,
+        extras: &FrameExtras,
+    ) -> Result<Array2<u16>> {
+        if extras.is_empty() {
+            return self.expose(mean_e, frame_index);
+        }
+        self.check_mean_shape(mean_e)?;
+        if let Some((idx, v)) = mean_e.indexed_iter().find(|(_, v)| !v.is_finite()) {
+            return Err(Error::param(
+                format!("mean electrons at row {}, column {}", idx.0, idx.1),
+                v,
+                "a finite number of electrons",
+            ));
+        }
+        self.expose_staged(mean_e, self.model.exposure_key(), frame_index, extras)
     }
 
     /// Refuses a mean-electron image of another shape than the detector.
@@ -590,6 +669,12 @@ impl DetectorInstance {
             ));
         }
         let exposure = m.exposure_key();
+        if m.couples_pixels() {
+            // The rows' values depend on their neighbours (IPC) and on the frame's readout
+            // noise: expose the whole frame and keep the rows asked for.
+            let all = self.expose_staged(mean_e, exposure, frame_index, &FrameExtras::default())?;
+            return Ok(all.select(ndarray::Axis(0), rows));
+        }
         let rows_out: Vec<Vec<u16>> = rows
             .par_iter()
             .map(|&i| self.expose_row(mean_e.row(i), i, exposure, frame_index))

@@ -840,9 +840,29 @@ pub fn write(path: &Path, cube: &Cube) -> Result<()> {
     res
 }
 
+/// Writes frames of equal shape as one `<f4` `[frame, row, col]` `.npy` stack, atomically
+/// (per-frame truth maps of a sequence, e.g. the charge held in persistence traps).
+pub fn write_f32_stack(path: &Path, frames: &[ndarray::ArrayView2<f32>]) -> Result<()> {
+    write_stack(path, "<f4", frames, |v, buf| {
+        buf.extend_from_slice(&v.to_le_bytes())
+    })
+}
+
 /// Writes frames of equal shape as one `<u2` `[frame, row, col]` `.npy` stack, atomically
 /// (a sequence's DN frames in one file for NumPy: `np.load` gives the stack).
 pub fn write_u16_stack(path: &Path, frames: &[ndarray::ArrayView2<u16>]) -> Result<()> {
+    write_stack(path, "<u2", frames, |v, buf| {
+        buf.extend_from_slice(&v.to_le_bytes())
+    })
+}
+
+/// One `[frame, row, col]` stack of dtype `descr`, each value appended by `put`.
+fn write_stack<T: Copy>(
+    path: &Path,
+    descr: &str,
+    frames: &[ndarray::ArrayView2<T>],
+    put: impl Fn(T, &mut Vec<u8>),
+) -> Result<()> {
     let (r, c) = frames.first().map_or((0, 0), |f| f.dim());
     if let Some(f) = frames.iter().find(|f| f.dim() != (r, c)) {
         return Err(Error::format(
@@ -855,12 +875,12 @@ pub fn write_u16_stack(path: &Path, frames: &[ndarray::ArrayView2<u16>]) -> Resu
         ));
     }
     atomic_write(path, |w| {
-        write_all(w, &npy_header("<u2", &[frames.len(), r, c]), path)?;
-        let mut buf = Vec::with_capacity(r * c * 2);
+        write_all(w, &npy_header(descr, &[frames.len(), r, c]), path)?;
+        let mut buf = Vec::with_capacity(r * c * std::mem::size_of::<T>());
         for f in frames {
             buf.clear();
             for v in f.iter() {
-                buf.extend_from_slice(&v.to_le_bytes());
+                put(*v, &mut buf);
             }
             write_all(w, &buf, path)?;
         }

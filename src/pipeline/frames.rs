@@ -410,15 +410,48 @@ impl<'a> Sink<'a> {
         let e = finite_mean(e, g, &job.options.input_name)?;
         let exposure = match &mut self.exposure {
             Some(x) => x,
-            None => self
-                .exposure
-                .insert(Exposure::new(job.sensor, e, job.options.seed)?),
+            None => {
+                let first = job.options.first_frame;
+                let clock_frames = usize::try_from(first)
+                    .ok()
+                    .and_then(|f| f.checked_add(job.n_frames))
+                    .ok_or_else(|| {
+                        Error::param("first_frame", first, "a frame index that fits in memory")
+                    })?;
+                let mut x = Exposure::new(job.sensor, e, job.options.seed, clock_frames)?;
+                if x.has_memory() && first > 0 {
+                    self.replay_before(&mut x, e)?;
+                }
+                self.exposure.insert(x)
+            }
         };
         let t0 = Instant::now();
         let dn = exposure.expose(e, job.options.first_frame + g as u64)?;
         self.detector_s += t0.elapsed().as_secs_f64();
         let rgb = colour::colour_image(job.sensor, exposure.model(), &dn);
         self.frames.push(FrameProducts::raw(e, dn, rgb));
+        Ok(())
+    }
+
+    /// Steps the focal plane's memory over the frames before the run's first
+    /// (`options.first_frame` > 0: a piece of a sequence split across processes), so its
+    /// state is that of one run over the whole sequence. RTS pixels and drift depend only
+    /// on the clock; persistence also on the earlier frames' mean images, which this run
+    /// has only when every frame sees the same image (a static scene and a still camera:
+    /// `e`, the first frame's).
+    fn replay_before(&self, x: &mut Exposure, e: &Array2<f64>) -> Result<()> {
+        let job = self.job;
+        let same_image = job.input_frames == 1 && job.stage.motion().is_none();
+        if job.sensor.config().detector.persistence.is_some() && !same_image {
+            return Err(Error::param(
+                "first_frame",
+                job.options.first_frame,
+                "0 with [detector.persistence] on a moving or 4-D sequence: the trapped charge depends on every earlier frame's image, which a piece starting later does not image (run the sequence in one piece, e.g. frames_per_task >= the frame count)",
+            ));
+        }
+        for f in 0..job.options.first_frame {
+            x.replay(e, f)?;
+        }
         Ok(())
     }
 

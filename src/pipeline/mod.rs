@@ -19,6 +19,7 @@
 pub mod calibrate;
 pub mod colour;
 pub mod expose;
+pub mod focal_plane;
 pub mod frames;
 pub mod image;
 pub mod motion;
@@ -37,6 +38,7 @@ use crate::report::{RunFacts, RunReport};
 use crate::scene::{CubeMeta, Geometry};
 use crate::sensor::Sensor;
 
+use focal_plane::FocalPlaneTruth;
 use image::ImagingStage;
 use motion::{SequenceMotion, TruthRow};
 
@@ -130,6 +132,9 @@ pub struct RunOutput {
     /// the exposure window, mean displacement and smear (written as `los.csv`); `None`
     /// for a still camera.
     pub line_of_sight: Option<Vec<TruthRow>>,
+    /// The focal plane's truth (RTS states, trapped charge, drift per frame); `None`
+    /// without a focal-plane memory (docs/focal-plane.md).
+    pub focal_plane: Option<FocalPlaneTruth>,
 }
 
 /// A false-colour composite of runs of the channels of one camera (3-CCD, three-band): the
@@ -302,7 +307,8 @@ pub fn run(
     let done = frames::image_and_expose(&job, reader, &mut progress)?;
     // Every frame is imaged: the engine's kept frame buffers are not needed any more.
     imaging.release_frame_buffers();
-    let (mut frames, exposure) = (done.frames, done.exposure);
+    let (mut frames, mut exposure) = (done.frames, done.exposure);
+    let focal_plane = FocalPlaneTruth::take(&mut exposure, options.first_frame);
     let mut read_warnings = reader.warnings();
     read_warnings.extend(done.reader_warnings);
     add_late_warnings(read_warnings, exposure.model().warnings(), &mut warnings);
@@ -334,6 +340,7 @@ pub fn run(
         execution: done.execution,
     });
     report.input.units_source = reader.units_source();
+    report.focal_plane = focal_plane::report(&exposure, focal_plane.as_ref(), &report);
     if let Some(w) =
         crate::report::saturation_warning(sensor, &frames[0].electrons_mean, &frames[0].dn)
     {
@@ -346,6 +353,7 @@ pub fn run(
         report,
         warnings,
         line_of_sight: truth,
+        focal_plane,
     })
 }
 

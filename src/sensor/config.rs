@@ -610,6 +610,21 @@ impl SensorConfig {
         if let Some(c) = &self.clock {
             c.validate(d.integration_time_s, d.rows)?;
         }
+        if self.clock.is_none() {
+            for (on, key) in [
+                (d.rts.is_some(), "detector.rts"),
+                (d.persistence.is_some(), "detector.persistence"),
+                (d.drift.is_some(), "detector.drift"),
+            ] {
+                if on {
+                    return Err(Error::param(
+                        key,
+                        "given without [clock]",
+                        "a [clock] section with the frame times it happens on (e.g. --set clock.frame_rate_hz=50)",
+                    ));
+                }
+            }
+        }
         if let Some(t) = &self.trajectory {
             t.validate()?;
         }
