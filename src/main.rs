@@ -42,6 +42,8 @@ enum Command {
     Characterize(characterize::CharacterizeArgs),
     /// Non-uniformity correction from blackbody frames: `nuc fit`, `nuc apply`.
     Nuc(nuc::NucArgs),
+    /// Find random telegraph (RTS) pixels in a dark sequence (a run's `dn_stack.npy`).
+    Rts(cli::rts::RtsArgs),
 }
 
 fn main() -> ExitCode {
@@ -61,6 +63,7 @@ fn main() -> ExitCode {
         Command::EdgeMtf(args) => edge_mtf::edge_mtf(args),
         Command::Characterize(args) => characterize::characterize(args),
         Command::Nuc(args) => nuc::nuc(args),
+        Command::Rts(args) => cli::rts::rts(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

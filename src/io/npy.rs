@@ -840,6 +840,55 @@ pub fn write(path: &Path, cube: &Cube) -> Result<()> {
     res
 }
 
+/// Reads a `[frame, row, col]` stack (`<u2`, `<i2`, `<f4`, `<f8` or big-endian, C order;
+/// e.g. a run's `dn_stack.npy`) as f32 values: a regular file only, the header parsed by
+/// the bounded parser and the size checked against the memory budget and the file length
+/// before anything is allocated.
+///
+/// Errors: not a 3-D C-order array of a supported type, a truncated file, a stack beyond
+/// the memory budget.
+pub fn read_stack(path: &Path) -> Result<ndarray::Array3<f32>> {
+    let mut file = crate::input::open_regular(path)?;
+    let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    let header = read_header(path, &mut file, len)?;
+    let [frames, rows, cols] = header.shape[..] else {
+        return Err(Error::format(
+            path,
+            format!(
+                "a stack of frames needs 3 dimensions [frame, row, col], found {}",
+                header.shape.len()
+            ),
+        ));
+    };
+    let dims = [
+        ("frames", frames as u64),
+        ("rows", rows as u64),
+        ("cols", cols as u64),
+    ];
+    crate::limits::check_alloc(&format!("reading {}", path.display()), &dims, 4)?;
+    let count = frames * rows * cols;
+    let bytes = (count as u64).saturating_mul(header.ty.size() as u64);
+    super::binary::check_size(
+        path,
+        len.saturating_sub(header.data_start),
+        bytes,
+        "[frame, row, col]",
+    )?;
+    let mut out = Vec::new();
+    super::binary::read_samples(
+        &mut file,
+        path,
+        header.data_start,
+        count,
+        header.ty,
+        header.big_endian,
+        None,
+        &mut out,
+    )?;
+    ndarray::Array3::from_shape_vec((frames, rows, cols), out)
+        .map_err(|e| Error::format(path, e.to_string()))
+}
+
 /// Writes frames of equal shape as one `<f4` `[frame, row, col]` `.npy` stack, atomically
 /// (per-frame truth maps of a sequence, e.g. the charge held in persistence traps).
 pub fn write_f32_stack(path: &Path, frames: &[ndarray::ArrayView2<f32>]) -> Result<()> {
