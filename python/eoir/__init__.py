@@ -40,6 +40,7 @@ from ._eoir import Nuc, Sensor, __version__
 from ._toolbox import (
     characterize,
     edge_mtf,
+    find_rts_pixels,
     nuc_apply,
     nuc_fit,
     read_image,
@@ -66,6 +67,7 @@ __all__ = [
     "restore",
     "edge_mtf",
     "nuc_fit",
+    "find_rts_pixels",
     "nuc_apply",
     "characterize",
     "simulate_acquisition_set",

@@ -214,6 +214,40 @@ def nuc_fit(frames, temperatures_k: Sequence[float], degree: int = 1) -> Nuc:
     )
 
 
+def find_rts_pixels(stack, threshold_sigma: float = 4.0, min_frames: int = 3,
+                    remove_frame_median: bool = True) -> dict:
+    """The random telegraph (RTS) pixels of a dark sequence (``eoir rts``;
+    docs/focal-plane.md).
+
+    Parameters
+    ----------
+    stack : array-like
+        ``[frame, row, col]`` DN or electrons (e.g. a run's ``dn_stack.npy``).
+    threshold_sigma : float, default 4
+        Minimum separation of the two levels in pooled within-level standard deviations.
+    min_frames : int, default 3
+        Minimum number of frames in each level.
+    remove_frame_median : bool, default True
+        Subtract each frame's median first (removes common-mode offsets).
+
+    Returns
+    -------
+    dict of numpy.ndarray
+        ``row``, ``col``, ``step`` (high minus low level, the stack's unit),
+        ``high_fraction`` and ``separation_sigma``, one entry per pixel found.
+    """
+    arr = np.asarray(stack.values if _xr.is_dataarray(stack) else stack)
+    if np.iscomplexobj(arr) or arr.dtype.kind not in "biuf":
+        raise TypeError(f"invalid parameter `stack`: real values, not dtype {arr.dtype}")
+    if arr.ndim != 3:
+        raise ValueError(f"invalid parameter `stack` = array of shape {arr.shape}: [frame, row, col]")
+    d = _checks.native(
+        _eoir.find_rts_pixels, np.ascontiguousarray(arr, dtype=np.float64),
+        float(threshold_sigma), _checks.uint("min_frames", min_frames), bool(remove_frame_median),
+    )
+    return {k: np.asarray(v) for k, v in d.items()}
+
+
 def nuc_apply(nuc, image):
     """Correct an image with NUC coefficients (``eoir nuc apply``).
 

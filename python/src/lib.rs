@@ -1325,6 +1325,40 @@ fn nuc_npy_path(path: &std::path::Path) -> PyResult<PathBuf> {
     }
 }
 
+/// The RTS pixels of a dark sequence (as `eoir rts`): `stack` f64 `[frame, row, col]`.
+/// Returns a dict of arrays `row`, `col`, `step`, `high_fraction`, `separation_sigma`.
+#[pyfunction]
+#[pyo3(signature = (stack, threshold_sigma=4.0, min_frames=3, remove_frame_median=true))]
+fn find_rts_pixels<'py>(
+    py: Python<'py>,
+    stack: PyReadonlyArray3<'py, f64>,
+    threshold_sigma: f64,
+    min_frames: usize,
+    remove_frame_median: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    use eoir::characterize::rts::{find_rts_pixels as find, RtsSearch};
+    let stack = stack.as_array().to_owned();
+    let search = RtsSearch {
+        threshold_sigma,
+        min_frames,
+        remove_frame_median,
+    };
+    let found = detached(py, move || find(stack.view(), &search))?;
+    let d = PyDict::new(py);
+    d.set_item("row", found.iter().map(|f| f.row).collect::<Vec<_>>())?;
+    d.set_item("col", found.iter().map(|f| f.col).collect::<Vec<_>>())?;
+    d.set_item("step", found.iter().map(|f| f.step).collect::<Vec<_>>())?;
+    d.set_item(
+        "high_fraction",
+        found.iter().map(|f| f.high_fraction).collect::<Vec<_>>(),
+    )?;
+    d.set_item(
+        "separation_sigma",
+        found.iter().map(|f| f.separation_sigma).collect::<Vec<_>>(),
+    )?;
+    Ok(d)
+}
+
 /// Fits per-pixel NUC polynomials (as `eoir nuc fit`): `frames` f64 `[N, row, col]`, N/T
 /// consecutive frames per temperature in the order of `temperatures_k`.
 #[pyfunction]
@@ -1552,6 +1586,7 @@ fn _eoir(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(restore, m)?)?;
     m.add_function(wrap_pyfunction!(edge_mtf, m)?)?;
     m.add_function(wrap_pyfunction!(nuc_fit, m)?)?;
+    m.add_function(wrap_pyfunction!(find_rts_pixels, m)?)?;
     m.add_function(wrap_pyfunction!(nuc_apply, m)?)?;
     m.add_function(wrap_pyfunction!(characterize, m)?)?;
     m.add_function(wrap_pyfunction!(simulate_acquisition_set, m)?)?;

@@ -77,3 +77,16 @@ def test_persistence_in_a_later_piece_of_a_sequence_is_refused(small_scene):
     with pytest.raises(ValueError, match="persistence"):
         eoir.run(s, seq, c.wavelength_um, c.fov_deg, first_frame=2, sequence_frames=4,
                  calibrate=False, range_m=c.range_m)
+
+
+def test_find_rts_pixels_in_a_dark_sequence():
+    """Planted two-level pixels in Gaussian noise are found; the rest are not."""
+    rng = np.random.default_rng(5)
+    stack = rng.normal(1000.0, 5.0, size=(60, 16, 20))
+    planted = [(3, 4), (10, 17), (12, 2)]
+    for k, (r, c) in enumerate(planted):
+        high = (np.arange(60) // (4 + k)) % 2 == 1
+        stack[high, r, c] += 60.0
+    found = eoir.find_rts_pixels(stack)
+    assert sorted(zip(found["row"], found["col"])) == sorted(planted)
+    assert np.all(np.abs(found["step"] - 60.0) < 5.0)
