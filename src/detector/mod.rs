@@ -34,7 +34,9 @@
 pub mod config;
 mod fpn;
 mod gain;
+pub mod persistence;
 pub(crate) mod rng;
+pub mod rts;
 
 use std::path::Path;
 
