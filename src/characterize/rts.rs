@@ -258,6 +258,13 @@ mod tests {
         let false_pos = found.len() - hits;
         let detection = hits as f64 / planted.len() as f64;
         let fp_rate = false_pos as f64 / (rows * cols - planted.len()) as f64;
+        println!(
+            "RTS finder: {hits}/{} planted found ({:.1} %), {false_pos} false positives \
+             ({:.3} %)",
+            planted.len(),
+            100.0 * detection,
+            100.0 * fp_rate
+        );
         assert!(detection >= 0.95, "detection {detection}");
         assert!(fp_rate < 0.01, "false positives {fp_rate}");
         // The measured step of a clean two-level pixel is close to the planted 60 e⁻,

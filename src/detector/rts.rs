@@ -409,6 +409,11 @@ mod tests {
         assert_eq!(high.len(), 4000);
         let d_high = ks_exponential(&mut high, c.tau_high_s);
         let d_low = ks_exponential(&mut low, c.tau_low_s);
+        println!(
+            "KS: D_high {d_high:.4}, D_low {d_low:.4}, critical {:.4} (n = {})",
+            crit(high.len()),
+            high.len()
+        );
         assert!(d_high < crit(high.len()), "D_high {d_high}");
         assert!(d_low < crit(low.len()), "D_low {d_low}");
         // The test has power: a τ 10 % off is rejected.
@@ -450,6 +455,7 @@ mod tests {
             / (n_pix * n_frames) as f64;
         let sigma =
             (2.0 * p * (1.0 - p) * c.correlation_time_s() / (total_t * n_pix as f64)).sqrt();
+        println!("high fraction {mean:.4} vs p = {p:.4} (σ {sigma:.4})");
         assert!(
             (mean - p).abs() < 4.0 * sigma,
             "mean {mean} p {p} σ {sigma}"
@@ -476,6 +482,7 @@ mod tests {
         let got = both as f64 / first as f64;
         // Binomial error, inflated ×2 for the correlation between successive pairs.
         let sigma = 2.0 * (expected * (1.0 - expected) / first as f64).sqrt();
+        println!("P(high | high one frame before) {got:.4} vs {expected:.4}");
         assert!((got - expected).abs() < 4.0 * sigma, "{got} vs {expected}");
     }
 
