@@ -172,10 +172,15 @@ fn two_level_split(
     }
     let (total, total_sq) = (prefix[n], prefix_sq[n]);
     let mut best: Option<(f64, usize)> = None;
-    for k in min_frames..=n - min_frames {
+    for (k, &below) in prefix
+        .iter()
+        .enumerate()
+        .take(n - min_frames + 1)
+        .skip(min_frames)
+    {
         let (n0, n1) = (k as f64, (n - k) as f64);
-        let mu0 = prefix[k] / n0;
-        let mu1 = (total - prefix[k]) / n1;
+        let mu0 = below / n0;
+        let mu1 = (total - below) / n1;
         let between = n0 * n1 * (mu1 - mu0) * (mu1 - mu0);
         if best.is_none_or(|(b, _)| between > b) {
             best = Some((between, k));
@@ -189,7 +194,7 @@ fn two_level_split(
     let ss1 = ((total_sq - prefix_sq[k]) - n1 * mu1 * mu1).max(0.0);
     let pooled = ((ss0 + ss1) / (n as f64 - 2.0)).sqrt();
     let step = mu1 - mu0;
-    if !(step > 0.0) {
+    if step.is_nan() || step <= 0.0 {
         return None;
     }
     let separation = if pooled > 0.0 {

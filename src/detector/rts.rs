@@ -2,7 +2,7 @@
 //! states, a low state and a high state with a higher dark current and/or offset, as a
 //! two-state continuous-time Markov process (a random telegraph signal; Kandiah, Deighton
 //! & Whiting 1989, J. Appl. Phys. 66, 937; for image sensors Bogaerts et al. 2002, IEEE
-//! Trans. Electron Devices 49, 249; Goiffon et al. 2009, IEEE Trans. Nucl. Sci. 56, 2132).
+//! Trans. Nucl. Sci. 49, 249; Goiffon et al. 2009, IEEE Trans. Nucl. Sci. 56, 2132).
 //!
 //! The dwell time in each state is exponential with mean `tau_high_s` or `tau_low_s`
 //! (Poisson switching: the rate of leaving the state is 1/τ). The stationary probability
@@ -490,7 +490,7 @@ mod tests {
     fn charge_is_the_dark_step_times_the_time_high_and_windows_add_up() {
         let c = cfg(1.0, 0.07, 0.11);
         // Rolling shutter: row r integrates [t0 + r·line, t0 + r·line + T], read at the end.
-        let (rows, cols, line, t_int, period) = (8, 8, 1e-3, 0.02, 0.05);
+        let (rows, cols, line, t_int) = (8, 8, 1e-3, 0.02);
         let mut split = RtsPixels::new(&c, rows, cols, 3);
         let mut whole = RtsPixels::new(&c, rows, cols, 3);
         // Two half windows vs the whole window: the time high adds up.
@@ -511,13 +511,13 @@ mod tests {
         let f = whole.frame(&|r| (r as f64 * line, r as f64 * line + t_int), &|r| {
             r as f64 * line + t_int
         });
-        for i in 0..rows * cols {
+        assert_eq!(sum.len(), rows * cols);
+        for (i, &split_s) in sum.iter().enumerate() {
             let high_s = f.high_fraction[i] * t_int;
-            assert!((sum[i] - high_s).abs() < 1e-12);
+            assert!((split_s - high_s).abs() < 1e-12);
             let offset = if f.high_at_readout[i] { 5.0 } else { 0.0 };
             assert!((f.extra_e[i] - (1000.0 * high_s + offset)).abs() < 1e-9);
         }
-        let _ = period;
     }
 
     #[test]
