@@ -281,6 +281,40 @@ mod tests {
     }
 
     #[test]
+    fn detection_rate_against_the_step_in_read_noise_sigma() {
+        // Same sequence as above with the high level (2/3 dark step, 1/3 offset step)
+        // swept: below the threshold (3 σ) nothing is found, from 5 σ ≥ 95 % is.
+        let mut rates = Vec::new();
+        for high_e in [30.0, 40.0, 45.0, 50.0, 60.0] {
+            let cfg = RtsConfig {
+                fraction: 0.02,
+                tau_high_s: 0.3,
+                tau_low_s: 0.7,
+                dark_step_e_per_s: high_e * 2.0 / 3.0 / 0.015,
+                offset_step_e: high_e / 3.0,
+            };
+            let (stack, planted) = dark_sequence(&cfg, 300, 96, 96);
+            let found = find_rts_pixels(stack.view(), &RtsSearch::default()).unwrap();
+            let hits = found
+                .iter()
+                .filter(|d| planted.binary_search(&d.pixel).is_ok())
+                .count();
+            let rate = hits as f64 / planted.len() as f64;
+            println!(
+                "step {:.1} σ: {hits}/{} found, {} false positives",
+                high_e / 10.0,
+                planted.len(),
+                found.len() - hits
+            );
+            assert!(found.len() - hits < 93, "false positives at {high_e}");
+            rates.push(rate);
+        }
+        assert!(rates[0] < 0.05, "{rates:?}");
+        assert!(rates.windows(2).all(|w| w[1] >= w[0]), "{rates:?}");
+        assert!(rates[3] >= 0.95, "{rates:?}");
+    }
+
+    #[test]
     fn a_gaussian_pixel_sits_near_the_half_normal_separation() {
         // Independent check of the null statistic: 2·0.798/0.603 ≈ 2.65 for N → ∞.
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(5);
