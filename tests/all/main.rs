@@ -14,6 +14,7 @@ mod detector;
 mod docs;
 mod edge_mtf;
 mod edge_mtf_cli;
+mod focal_plane_traps;
 mod frames_parallel;
 mod fuzz;
 mod golden;
