@@ -5,6 +5,7 @@
 pub mod analysis;
 pub mod datasheet;
 pub mod descriptor;
+pub mod rts;
 pub mod simulate;
 pub mod uncertainty;
 

@@ -53,6 +53,11 @@ pub(crate) enum Effect {
     Read = 0x5245_4144,
     /// Line-of-sight wander (`crate::los`), one stream per image axis (the `row` key).
     LosWander = 0x4c4f_5357,
+    /// Which pixels are random-telegraph pixels (`detector::rts`), one stream per row.
+    RtsPixel = 0x5254_5350,
+    /// The two-state switching process of one RTS pixel (`detector::rts`), keyed by the
+    /// pixel's flat index (the `row` key) and drawn from t = 0.
+    RtsSwitch = 0x5254_5357,
 }
 
 /// SplitMix64 finaliser: a bijective 64-bit mix with full avalanche.

@@ -15,6 +15,7 @@ mod docs;
 mod edge_mtf;
 mod edge_mtf_cli;
 mod focal_plane_run;
+mod focal_plane_traps;
 mod frames_parallel;
 mod fuzz;
 mod golden;
