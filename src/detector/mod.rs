@@ -32,8 +32,10 @@
 //! [`DetectorModel::temporal_noise_e`] / [`DetectorModel::temporal_noise_dn`].
 
 pub mod config;
+pub mod drift;
 mod fpn;
 mod gain;
+pub mod ipc;
 pub(crate) mod rng;
 
 use std::path::Path;

@@ -53,6 +53,15 @@ pub(crate) enum Effect {
     Read = 0x5245_4144,
     /// Line-of-sight wander (`crate::los`), one stream per image axis (the `row` key).
     LosWander = 0x4c4f_5357,
+    /// Random-walk increments of the per-pixel offset drift (`drift`), one stream per
+    /// grid step (the `frame` key) and row.
+    DriftOffsetWalk = 0x444f_574b,
+    /// Random-walk increments of the per-pixel gain drift (`drift`).
+    DriftGainWalk = 0x4447_574b,
+    /// Per-pixel offset temperature coefficients (`drift`).
+    DriftOffsetTempco = 0x444f_5443,
+    /// Per-pixel gain temperature coefficients (`drift`).
+    DriftGainTempco = 0x4447_5443,
 }
 
 /// SplitMix64 finaliser: a bijective 64-bit mix with full avalanche.
