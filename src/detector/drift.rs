@@ -649,7 +649,7 @@ mod tests {
         assert_eq!(walk_variance_s(5.0, 500.0, 100.0), 400.0);
         // Inside one interval: (u − v)²Δ; across: (1−v)² + (k−j−1) + u² steps.
         assert!((walk_variance_s(5.0, 1.0, 4.0) - 5.0 * 0.36).abs() < 1e-12);
-        assert!((walk_variance_s(5.0, 1.0, 11.0) - 5.0 * (0.64 + 0.04)).abs() < 1e-12);
+        assert!((walk_variance_s(5.0, 1.0, 11.0) - 5.0 * (0.64 + 1.0 + 0.04)).abs() < 1e-12);
     }
 
     #[test]
