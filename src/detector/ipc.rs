@@ -216,8 +216,9 @@ fn ipc_row(kernel: &[[f64; 3]; 3], q: &[f64], rows: usize, cols: usize, y: usize
     // Left and right columns: the kernel column pointing off the array, minus the corner
     // entries already counted with the rows.
     let side = |c: usize| -> f64 {
+        let off_array = |r: usize| (r == 0 && y == 0) || (r == 2 && y + 1 == rows);
         (0..3)
-            .filter(|&r| !(r == 0 && y == 0) && !(r == 2 && y + 1 == rows))
+            .filter(|&r| !off_array(r))
             .map(|r| kernel[r][c])
             .sum()
     };
