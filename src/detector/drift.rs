@@ -366,19 +366,30 @@ impl Drift {
         u: f64,
         dt_k: f64,
     ) -> Vec<f64> {
-        let mut out = vec![base; self.rows * self.cols];
-        if let Some(w) = walk {
-            out.par_iter_mut()
-                .zip(w.lo.par_iter().zip(&w.hi))
-                .for_each(|(o, (&lo, &hi))| *o += lo + u * (hi - lo));
-        }
-        if let Some(beta) = tempco {
-            if dt_k != 0.0 {
-                out.par_iter_mut()
-                    .zip(beta)
-                    .for_each(|(o, &b)| *o += b * dt_k);
+        let n = self.rows * self.cols;
+        let chunk = self.cols.max(1);
+        let mut out = vec![0.0; n];
+        let beta = tempco.filter(|_| dt_k != 0.0);
+        out.par_chunks_mut(chunk).enumerate().for_each(|(row, o)| {
+            let span = row * chunk..row * chunk + o.len();
+            match walk {
+                Some(w) => {
+                    for ((v, &lo), &hi) in o
+                        .iter_mut()
+                        .zip(&w.lo[span.clone()])
+                        .zip(&w.hi[span.clone()])
+                    {
+                        *v = base + (lo + u * (hi - lo));
+                    }
+                }
+                None => o.iter_mut().for_each(|v| *v = base),
             }
-        }
+            if let Some(beta) = beta {
+                for (v, &b) in o.iter_mut().zip(&beta[span]) {
+                    *v += b * dt_k;
+                }
+            }
+        });
         out
     }
 }
