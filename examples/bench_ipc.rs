@@ -2,8 +2,8 @@
 //! fixed-pattern drift (`detector::drift::Drift::at`) on a 640 × 512 frame (issue 35 asks
 //! for ≤ 10 ms each).
 //!
-//! `cargo run --release --example bench_ipc` prints the median (and for the drift the
-//! slowest) milliseconds per frame. IPC: `EOIR_BENCH_REPEAT` applications (default 30) of
+//! `cargo run --release --example bench_ipc` prints the median (and for the drift the mean
+//! and the slowest) milliseconds per frame. IPC: `EOIR_BENCH_REPEAT` applications (default 30) of
 //! a c = 0.02, d = 0.002, a = 0.003 kernel to a random frame. Drift: a 30 Hz sequence of
 //! `EOIR_BENCH_REPEAT × 3` frames with every drift term on and a 1 s walk grid, so one
 //! frame in 30 also draws a new walk step (that frame is the slowest).
@@ -67,6 +67,7 @@ fn main() {
         checksum += d.offset_e[[0, 0]];
     }
     let drift_max = drift_ms.iter().cloned().fold(0.0, f64::max);
+    let drift_mean = drift_ms.iter().sum::<f64>() / drift_ms.len() as f64;
 
     println!("640 x 512 frame, {threads} rayon threads");
     println!(
@@ -75,8 +76,9 @@ fn main() {
     );
     println!("drift Drift::new     {new_ms:.2} ms (once per sensor)");
     println!(
-        "drift Drift::at 30 Hz median {:.2} ms/frame, slowest {:.2} ms ({} frames)",
+        "drift Drift::at 30 Hz median {:.2} ms/frame, mean {:.2}, slowest {:.2} ms ({} frames)",
         median(drift_ms),
+        drift_mean,
         drift_max,
         3 * repeat
     );
