@@ -309,13 +309,13 @@ impl Drift {
         }
     }
 
-    /// The drift at time `t_s` (seconds since the sequence start; negative or NaN counts
-    /// as 0): multiply the pixel's gain by `gain_factor` and add `offset_e`. t = 0 gives
+    /// The drift at time `t_s` (seconds since the sequence start; a negative or
+    /// non-finite time counts as 0): multiply the pixel's gain by `gain_factor` and add `offset_e`. t = 0 gives
     /// none (factor exactly 1, offset exactly 0). Calls are cheapest in increasing time
     /// (each advances the walk by the grid steps since the previous call); an earlier
     /// time replays the walk from t = 0, with the same result as a fresh instance.
     pub fn at(&mut self, t_s: f64) -> DriftState {
-        let t = if t_s.is_nan() { 0.0 } else { t_s.max(0.0) };
+        let t = if t_s.is_finite() { t_s.max(0.0) } else { 0.0 };
         let (k, u) = grid_position(self.cfg.walk_step_s, t);
         if k < self.k {
             for w in [&mut self.offset_walk, &mut self.gain_walk]
@@ -625,6 +625,7 @@ mod tests {
         let zero = Drift::new(&cfg, 16, 24, 3).at(0.0);
         assert!(zero.gain_factor.iter().all(|&g| g == 1.0));
         assert!(zero.offset_e.iter().all(|&o| o == 0.0));
+        assert_eq!(Drift::new(&cfg, 16, 24, 3).at(f64::INFINITY), zero);
         let none = Drift::new(&DriftConfig::default(), 4, 5, 3).at(1e4);
         assert!(none.gain_factor.iter().all(|&g| g == 1.0));
         assert!(none.offset_e.iter().all(|&o| o == 0.0));
