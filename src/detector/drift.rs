@@ -9,9 +9,10 @@
 //!   offset       o_i(t) =     W^o_i(t) + β^o_i · ΔT(t)        [e⁻]
 //! ```
 //!
-//! - `W_i` is a random walk (Brownian motion, the standard model of a drifting offset,
-//!   e.g. Mooney, Shepherd et al. 1989, "Responsivity nonuniformity limited performance of
-//!   infrared staring cameras", Opt. Eng. 28, 1151): independent Gaussian increments of
+//! - `W_i` is a random walk (Brownian motion; the model chosen here for an unpredictable
+//!   drift — the residual non-uniformity it leaves is what limits a staring camera, Mooney,
+//!   Shepherd et al. 1989, "Responsivity nonuniformity limited performance of infrared
+//!   staring cameras", Opt. Eng. 28, 1151): independent Gaussian increments of
 //!   variance σ_w²·Δ on a fixed time grid of step Δ (`walk_step_s`), W(0) = 0, linear
 //!   between grid points. So Var W(kΔ) = σ_w²·kΔ exactly; between grid points
 //!   Var W((k+u)Δ) = σ_w²Δ(k + u²) ([`walk_variance_s`]).
