@@ -58,6 +58,15 @@ pub(crate) enum Effect {
     /// The two-state switching process of one RTS pixel (`detector::rts`), keyed by the
     /// pixel's flat index (the `row` key) and drawn from t = 0.
     RtsSwitch = 0x5254_5357,
+    /// Random-walk increments of the per-pixel offset drift (`drift`), one stream per
+    /// grid step (the `frame` key) and row.
+    DriftOffsetWalk = 0x444f_574b,
+    /// Random-walk increments of the per-pixel gain drift (`drift`).
+    DriftGainWalk = 0x4447_574b,
+    /// Per-pixel offset temperature coefficients (`drift`).
+    DriftOffsetTempco = 0x444f_5443,
+    /// Per-pixel gain temperature coefficients (`drift`).
+    DriftGainTempco = 0x4447_5443,
 }
 
 /// SplitMix64 finaliser: a bijective 64-bit mix with full avalanche.
