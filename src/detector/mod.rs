@@ -34,6 +34,7 @@
 pub mod config;
 mod fpn;
 mod gain;
+pub mod readout;
 pub(crate) mod rng;
 
 use std::path::Path;

@@ -53,6 +53,16 @@ pub(crate) enum Effect {
     Read = 0x5245_4144,
     /// Line-of-sight wander (`crate::los`), one stream per image axis (the `row` key).
     LosWander = 0x4c4f_5357,
+    /// Uncorrelated pink readout noise, one stream per output (the `row` key)
+    /// (`super::readout`).
+    ReadoutPink = 0x5049_4e4b,
+    /// Correlated pink readout noise common to all outputs (`super::readout`).
+    ReadoutCorrelatedPink = 0x4350_4e4b,
+    /// Alternating-column pink noise, one stream per output and column parity (the `row`
+    /// key is 2·output + parity) (`super::readout`).
+    ReadoutAlternatingColumn = 0x4143_4e20,
+    /// Temporal per-row offsets of the readout (`super::readout`).
+    ReadoutRow = 0x524f_574e,
 }
 
 /// SplitMix64 finaliser: a bijective 64-bit mix with full avalanche.
