@@ -67,6 +67,16 @@ pub(crate) enum Effect {
     DriftOffsetTempco = 0x444f_5443,
     /// Per-pixel gain temperature coefficients (`drift`).
     DriftGainTempco = 0x4447_5443,
+    /// Uncorrelated pink readout noise, one stream per output (the `row` key)
+    /// (`super::readout`).
+    ReadoutPink = 0x5049_4e4b,
+    /// Correlated pink readout noise common to all outputs (`super::readout`).
+    ReadoutCorrelatedPink = 0x4350_4e4b,
+    /// Alternating-column pink noise, one stream per output and column parity (the `row`
+    /// key is 2·output + parity) (`super::readout`).
+    ReadoutAlternatingColumn = 0x4143_4e20,
+    /// Temporal per-row offsets of the readout (`super::readout`).
+    ReadoutRow = 0x524f_574e,
 }
 
 /// SplitMix64 finaliser: a bijective 64-bit mix with full avalanche.
