@@ -19,7 +19,7 @@
 //! (r, j-th read of its stripe) is read at tick `r·(w + row_overhead_px) + j`.
 //!
 //! **Components** (each off when its amplitude is 0 or absent; each from its own random
-//! stream, [`super::rng`]): uncorrelated pink noise, one series per output; correlated pink
+//! stream, `super::rng`): uncorrelated pink noise, one series per output; correlated pink
 //! noise, one series common to all outputs (the same value at the same tick); alternating-
 //! column noise (ACN), two independent pink series per output, one for the even and one for
 //! the odd columns, sampled every second tick; and a white per-row offset (the whole row,
