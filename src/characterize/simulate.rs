@@ -237,7 +237,7 @@ pub fn simulate(sensor: &SensorConfig, dir: &Path, options: &SimulateOptions) ->
 
     // One product set: staged inside `dir`, moved into place only when complete, and
     // removed (with `dir` if this call created it) on an error or SIGINT/SIGTERM.
-    let set = ProductSet::begin(dir)?;
+    let set = ProductSet::begin(dir)?.replacing("characterize-simulate");
     let tmp = set.staging_dir().to_path_buf();
     let result = (|| -> Result<Truth> {
         for sub in ["ptc", "dark", "spatial"] {

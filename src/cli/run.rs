@@ -266,7 +266,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     };
     if !args.composite {
         let sensor = args.sensor.load()?;
-        let set = ProductSet::begin(&args.output)?;
+        let set = ProductSet::begin(&args.output)?.replacing("run");
         run_file(
             &sensor,
             &args.input,
@@ -319,7 +319,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         ));
     }
     sensors.sort_by(|a, b| b.0.total_cmp(&a.0));
-    let set = ProductSet::begin(&args.output)?;
+    let set = ProductSet::begin(&args.output)?.replacing("run-composite");
     let mut outs = Vec::new();
     let mut shared_gain: Option<f64> = None;
     for (lambda, ch, mut sensor) in sensors {
@@ -390,7 +390,7 @@ pub fn demo(args: DemoArgs) -> Result<()> {
         ..sizing::covering(&grid, args.oversampling, sizing::DEFAULT_MARGIN_PX)
             .with_context(|| format!("sizing the demo scene to sensor `{}`", sensor.name))?
     };
-    let set = ProductSet::begin(&args.output)?;
+    let set = ProductSet::begin(&args.output)?.replacing("demo");
     let scene_path = set.staging_dir().join("scene.hdr");
     let cube = synthetic::thermal(&params)?;
     eoir::io::write_cube(&scene_path, &cube)?;

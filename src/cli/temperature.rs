@@ -183,7 +183,7 @@ pub fn temperature(args: TemperatureArgs) -> Result<()> {
             (t, None, nan, lut.range_k(), None)
         }
     };
-    let set = ProductSet::begin(&args.output)?;
+    let set = ProductSet::begin(&args.output)?.replacing("temperature");
     let p = set.staging_dir().join("temperature.tiff");
     eoir::io::raster::write_tiff_f32(&p, temperature.view())?;
     if let Some(l) = radiance {

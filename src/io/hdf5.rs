@@ -612,7 +612,7 @@ pub fn write(path: &Path, cube: &Cube) -> Result<()> {
     let data = cube.data.as_standard_layout();
     super::atomic_write_path(path, |tmp| {
         {
-            let file = File::create(tmp).ctx(tmp, "cannot create HDF5 file")?;
+            let file = create_file(tmp)?;
             let ds = file
                 .new_dataset_builder()
                 .with_data(data.view())
@@ -660,7 +660,7 @@ pub fn write_frames(
     let data = frames.as_standard_layout();
     super::atomic_write_path(path, |tmp| {
         {
-            let file = File::create(tmp).ctx(tmp, "cannot create HDF5 file")?;
+            let file = create_file(tmp)?;
             let ds = file
                 .new_dataset_builder()
                 .with_data(data.view())
@@ -717,6 +717,16 @@ fn check_attr_names(owner: &str, attrs: &[(&str, String)]) -> Result<()> {
     Ok(())
 }
 
+/// Creates (truncates) an HDF5 file for writing without object modification times, so the
+/// same content gives the same bytes (a rerun with the same seed reproduces every product
+/// file exactly; HDF5 would otherwise stamp the root group with the time of writing).
+fn create_file(tmp: &Path) -> Result<File> {
+    File::with_options()
+        .with_fcpl(|p| p.obj_track_times(false))
+        .create(tmp)
+        .ctx(tmp, "cannot create HDF5 file")
+}
+
 /// Writes one HDF5 file holding named 2-D products (e.g. `"dn"` u16, `"electrons_mean"`,
 /// `"radiance"`, `"temperature"` f32) as root-level datasets with string attributes per
 /// product, and string attributes on the file, atomically. Values are written as given
@@ -754,7 +764,7 @@ pub fn write_bundle(
 
     super::atomic_write_path(path, |tmp| {
         {
-            let file = File::create(tmp).ctx(tmp, "cannot create HDF5 file")?;
+            let file = create_file(tmp)?;
             for p in products {
                 let what = format!("cannot write dataset `/{}`", p.name);
                 let ds = match &p.data {

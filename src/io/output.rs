@@ -278,7 +278,13 @@ pub struct ProductSet {
     /// The outermost output directory level [`ProductSet::begin`] created.
     created: Option<PathBuf>,
     committed: bool,
+    /// The kind of set this one replaces ([`ProductSet::replacing`]).
+    replaces: Option<String>,
 }
+
+/// Prefix of the file listing the products of the last set of a kind
+/// ([`ProductSet::replacing`]): `.eoir-products-<kind>` in the output directory.
+pub const MANIFEST_PREFIX: &str = ".eoir-products-";
 
 /// Attempts at creating the staging directory when the output directory disappears in
 /// between (another process's uncommitted set removed it, empty, as its own creation).
@@ -340,7 +346,19 @@ impl ProductSet {
             staging,
             created,
             committed: false,
+            replaces: None,
         })
+    }
+
+    /// Makes this set replace the last set of the same `kind` (e.g. `"run"`) committed
+    /// into the output directory: files that set wrote and this one does not are removed
+    /// when this one commits, so a 3-frame run into the folder of a 12-frame run leaves
+    /// the 3 frames, not 3 new frames beside 9 old ones. The set's file names are kept in
+    /// `.eoir-products-<kind>` (one relative path per line); only regular files named
+    /// there are ever removed, never anything else in the folder.
+    pub fn replacing(mut self, kind: &str) -> Self {
+        self.replaces = Some(kind.to_string());
+        self
     }
 
     /// Where the products are to be written (same relative names as in the output).
@@ -441,6 +459,22 @@ impl ProductSet {
         let mut files = Vec::new();
         let mut dirs = Vec::new();
         collect(&self.staging, Path::new(""), &mut files, &mut dirs)?;
+        // The set's list of files moves in with it (a plain write: the staging directory
+        // is already registered for clean-up).
+        let manifest = self
+            .replaces
+            .as_ref()
+            .map(|kind| PathBuf::from(format!("{MANIFEST_PREFIX}{kind}")));
+        if let Some(m) = &manifest {
+            files.retain(|f| f != m);
+            let mut text = String::new();
+            for f in &files {
+                text.push_str(&f.to_string_lossy());
+                text.push('\n');
+            }
+            let staged = self.staging.join(m);
+            std::fs::write(&staged, text).map_err(|e| Error::io(self.dir.join(m), e))?;
+        }
         let dir = self.dir.clone();
         let _lock = super::dir_lock::DirLock::acquire(&self.dir, || {
             eprintln!(
@@ -465,6 +499,11 @@ impl ProductSet {
         for f in &files {
             check_output_target(&self.dir.join(f))?;
         }
+        // The last set of this kind, read before the move replaces its list.
+        let stale = match &manifest {
+            Some(m) => stale_products(&self.dir.join(m), &files)?,
+            None => Vec::new(),
+        };
         // The signal handler waits for this lock: the move completes or never starts.
         let mut list = cleanup_list();
         let mut result = Ok(());
@@ -481,6 +520,15 @@ impl ProductSet {
                 if let Err(e) = std::fs::rename(self.staging.join(f), &target) {
                     result = Err(Error::io(&target, e));
                     break;
+                }
+            }
+        }
+        if result.is_ok() {
+            if let Some(m) = &manifest {
+                let target = self.dir.join(m);
+                match std::fs::rename(self.staging.join(m), &target) {
+                    Ok(()) => result = remove_stale(&self.dir, &stale),
+                    Err(e) => result = Err(Error::io(&target, e)),
                 }
             }
         }
@@ -548,6 +596,47 @@ pub fn check_finite(path: &Path, values: impl IntoIterator<Item = f64>, what: &s
             ),
         )),
     }
+}
+
+/// The files the list `manifest` (of the last set of a kind) names that `files` (the new
+/// set) does not: plain relative paths only.
+fn stale_products(manifest: &Path, files: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    // Never read (or block on) a special file put in its place: refuse it like a product.
+    check_output_target(manifest)?;
+    let old = match std::fs::read_to_string(manifest) {
+        Ok(text) => text,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => String::new(),
+        Err(e) => return Err(Error::io(manifest, e)),
+    };
+    let new: std::collections::BTreeSet<&Path> = files.iter().map(|f| f.as_path()).collect();
+    Ok(old
+        .lines()
+        .map(Path::new)
+        .filter(|rel| {
+            !rel.as_os_str().is_empty()
+                && rel
+                    .components()
+                    .all(|c| matches!(c, std::path::Component::Normal(_)))
+                && !new.contains(rel)
+        })
+        .map(Path::to_path_buf)
+        .collect())
+}
+
+/// Removes the `stale` products from `dir` — regular files only; what is gone already or
+/// is no longer a regular file is left alone.
+fn remove_stale(dir: &Path, stale: &[PathBuf]) -> Result<()> {
+    for rel in stale {
+        let path = dir.join(rel);
+        if std::fs::symlink_metadata(&path).is_ok_and(|m| m.file_type().is_file()) {
+            match std::fs::remove_file(&path) {
+                Ok(()) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                Err(e) => return Err(Error::io(&path, e)),
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Relative paths of the files and directories under `root/rel` (directories first-level

@@ -138,8 +138,16 @@ impl RunOutput {
                 });
             }
             let p = dir.join("products.h5");
-            let report = serde_json::to_string(&self.report)
-                .map_err(|e| Error::format(&p, e.to_string()))?;
+            // The report without what varies from one run to the next on the same input
+            // and seed (timings; threads and frames in flight): the bundle, like every
+            // other product, is the same bytes for the same run (report.json has them).
+            let mut report =
+                serde_json::to_value(&self.report).map_err(|e| Error::format(&p, e.to_string()))?;
+            if let Some(fields) = report.as_object_mut() {
+                fields.remove("timings_s");
+                fields.remove("execution");
+            }
+            let report = report.to_string();
             write_bundle(
                 &p,
                 &items,

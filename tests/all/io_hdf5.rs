@@ -11,6 +11,26 @@ use hdf5_metno::types::{FixedAscii, VarLenUnicode};
 use hdf5_metno::File;
 use ndarray::{Array2, Array3, Array4};
 
+/// Opens a file the test has just written. HDF5 locks its files with `flock` and opens them
+/// without close-on-exec, so an `eoir` child spawned at that moment by a test running in
+/// parallel inherits the descriptor, and with it the lock, until it exits: the open is
+/// retried for a few seconds while the file is locked.
+fn open_locked(path: &Path, open: impl Fn(&Path) -> hdf5_metno::Result<File>) -> File {
+    let start = std::time::Instant::now();
+    loop {
+        match open(path) {
+            Ok(f) => return f,
+            Err(e)
+                if e.to_string().contains("unable to lock file")
+                    && start.elapsed() < std::time::Duration::from_secs(20) =>
+            {
+                std::thread::sleep(std::time::Duration::from_millis(50))
+            }
+            Err(e) => panic!("{}: {e}", path.display()),
+        }
+    }
+}
+
 fn value(f: usize, b: usize, r: usize, c: usize) -> f32 {
     let k = (f * 1009 + b * 131 + r * 17 + c * 7) as f32;
     (k * 0.618_034).fract() * 10f32.powi((b % 4) as i32 - 1)
@@ -84,7 +104,7 @@ fn round_trip_is_exact() {
     }
 
     // The layout, checked with the HDF5 library: f32 [band,row,col] and the attributes.
-    let file = File::open(&path).unwrap();
+    let file = open_locked(&path, |p| File::open(p));
     let ds = file.dataset("radiance").unwrap();
     assert_eq!(ds.shape(), vec![5, 6, 7]);
     let raw: Array3<f32> = ds.as_reader().no_convert().read().unwrap();
@@ -219,7 +239,7 @@ fn fixed_length_string_attribute_is_read() {
     let data = Array3::from_elem((1, 2, 2), 0.5f32);
     write_direct(&path, &data, Some(&[10.0]), None);
     {
-        let file = File::open_rw(&path).unwrap();
+        let file = open_locked(&path, |p| File::open_rw(p));
         let ds = file.dataset("radiance").unwrap();
         let v = FixedAscii::<10>::from_ascii(b"W m-2 sr-1").unwrap();
         ds.new_attr::<FixedAscii<10>>()
@@ -294,7 +314,7 @@ fn bundle_is_readable_back() {
     )
     .unwrap();
 
-    let file = File::open(&path).unwrap();
+    let file = open_locked(&path, |p| File::open(p));
     let ds = file.dataset("dn").unwrap();
     let back: Array2<u16> = ds.as_reader().no_convert().read_2d().unwrap();
     assert_eq!(back, dn);
@@ -477,7 +497,7 @@ fn write_with(
         1.0 + b as f32 + 0.1 * r as f32 + 0.01 * c as f32
     });
     write_direct(path, &data, Some(wavelength), None);
-    let file = File::open_rw(path).unwrap();
+    let file = open_locked(path, |p| File::open_rw(p));
     let ds = file.dataset("radiance").unwrap();
     for (name, v) in f64_attrs {
         ds.new_attr_builder().with_data(*v).create(*name).unwrap();
@@ -726,4 +746,38 @@ fn read_bands_matches_read_band_in_any_order() {
         let e = r.read_bands(0, &[0, 7]).unwrap_err().to_string();
         assert!(e.contains("band 7"), "{e}");
     }
+}
+
+/// A rerun gives the same bytes: the bundle and the cube writers stamp no object times
+/// (HDF5's default would put the time of writing in the root group's header, so two runs
+/// with one seed a second apart differed in `products.h5` alone).
+#[test]
+fn writers_give_the_same_bytes_a_second_later() {
+    let dir = tempfile::tempdir().unwrap();
+    let dn = Array2::from_shape_fn((3, 5), |(r, c)| (r * 10 + c) as u16);
+    let write_all = |tag: &str| -> Vec<Vec<u8>> {
+        let bundle = dir.path().join(format!("bundle-{tag}.h5"));
+        h5io::write_bundle(
+            &bundle,
+            &[BundleItem {
+                name: "dn",
+                data: BundleData::U16(dn.view()),
+                attrs: vec![("units", "DN".to_string())],
+            }],
+            &[("sensor", "test".to_string())],
+        )
+        .unwrap();
+        let cube = dir.path().join(format!("cube-{tag}.h5"));
+        h5io::write(&cube, &test_cube()).unwrap();
+        [bundle, cube]
+            .iter()
+            .map(|p| std::fs::read(p).unwrap())
+            .collect()
+    };
+    let first = write_all("a");
+    // HDF5 object times have a resolution of one second.
+    std::thread::sleep(std::time::Duration::from_millis(1100));
+    let second = write_all("b");
+    assert!(first[0] == second[0], "the bundle's bytes changed");
+    assert!(first[1] == second[1], "the cube's bytes changed");
 }

@@ -539,10 +539,18 @@ fn two_runs_into_one_folder_end_with_one_complete_set() {
             ob.stderr
         );
         let now = stable(listing(&d.join("out")), &volatile);
+        let differs = |r: &Listing| -> Vec<&PathBuf> {
+            now.iter()
+                .filter(|(k, v)| r.get(*k) != Some(*v))
+                .map(|(k, _)| k)
+                .collect()
+        };
         assert!(
             now == refs[0] || now == refs[1],
-            "trial {trial}: the folder mixes the two runs ({} files)",
-            now.len()
+            "trial {trial}: the folder mixes the two runs ({} files; unlike run 1: {:?}; unlike run 2: {:?})",
+            now.len(),
+            differs(&refs[0]),
+            differs(&refs[1])
         );
         assert!(
             litter(d).is_empty(),
@@ -550,4 +558,43 @@ fn two_runs_into_one_folder_end_with_one_complete_set() {
             litter(d)
         );
     }
+}
+
+/// A run into the folder of a longer run leaves its own set, not its frames beside the
+/// old run's later ones; a file of the user's in the folder stays.
+#[test]
+fn a_shorter_run_replaces_the_longer_set_and_leaves_other_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    fixture_scene(d);
+    let run = |out: &str, frames: &str| -> Vec<OsString> {
+        let mut v = strings(&[
+            "run",
+            "--sensor",
+            "multimir",
+            "--option",
+            "sequence=still",
+            "--quiet",
+        ]);
+        v.extend(strings(&SMALL));
+        v.extend(strings(&["s.hdr", "-o", out, "--frames", frames]));
+        os(&v)
+    };
+    let volatile = ["report.json", "report.html"];
+    for (out, frames) in [("fresh", "3"), ("out", "12")] {
+        let o = finish_within(spawn_limited(d, &run(out, frames)), "run", LONG_RUN_AFTER);
+        assert_eq!(o.code, Some(0), "{}", o.stderr);
+    }
+    std::fs::write(d.join("out/notes.txt"), b"mine").unwrap();
+    let o = finish_within(spawn_limited(d, &run("out", "3")), "run", LONG_RUN_AFTER);
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    let mut now = stable(listing(&d.join("out")), &volatile);
+    assert!(
+        now.remove(Path::new("notes.txt")).is_some(),
+        "the user's file was removed"
+    );
+    let fresh = stable(listing(&d.join("fresh")), &volatile);
+    let extra: Vec<_> = now.keys().filter(|k| !fresh.contains_key(*k)).collect();
+    assert!(extra.is_empty(), "left from the 12-frame run: {extra:?}");
+    assert_eq!(now, fresh);
 }
