@@ -1,5 +1,5 @@
 //! Readout-ordered correlated noise and crosstalk between outputs (`[detector.readout_noise]`,
-//! docs/focal-plane-readout.md).
+//! docs/focal-plane.md).
 //!
 //! The noise of a read-out integrated circuit is a time series: 1/f ("pink") noise in the
 //! output amplifiers and the shared bias is sampled one pixel per clock tick, so a

@@ -176,16 +176,6 @@ impl RunOutput {
         if let Some(truth) = &self.focal_plane {
             written.extend(truth.write(dir)?);
         }
-        if let Some(png) = self
-            .report
-            .focal_plane
-            .as_ref()
-            .and_then(super::focal_plane::drift_plot)
-        {
-            let p = dir.join("nuc_drift.png");
-            crate::display::write_png_bytes(&p, &png?)?;
-            written.push(p);
-        }
         let p = dir.join("config.toml");
         let text = self.sensor.to_toml_string()?;
         crate::io::atomic_write(&p, |w| crate::io::write_all(w, text.as_bytes(), &p))?;

@@ -59,6 +59,9 @@ pub struct RunPictures {
     /// `trajectory.png`: a moving camera's line of sight per exposure window (the truth
     /// table `los.csv`), absent for a still camera.
     pub trajectory: Option<Picture>,
+    /// `nuc_drift.png`: the residual non-uniformity against time since the NUC (a
+    /// detector with `[detector.drift]`, two or more frames; docs/focal-plane.md).
+    pub nuc_drift: Option<Picture>,
     /// `spectral_response.png`: filter, optics, quantum efficiency, atmosphere and their
     /// product (absent when the sensor's band is unbounded).
     pub spectral: Option<Picture>,
@@ -137,6 +140,19 @@ impl RunPictures {
             }),
             None => None,
         };
+        let nuc_drift = match out
+            .report
+            .focal_plane
+            .as_ref()
+            .and_then(super::focal_plane::drift_plot)
+        {
+            Some(png) => Some(Picture {
+                file_name: "nuc_drift.png",
+                png: png?,
+                caption: "residual non-uniformity after a two-point NUC at the sequence start, against time since the NUC: expected from the drift model (line) and measured on the drift applied (dots); values in report.json, focal_plane.drift".to_string(),
+            }),
+            None => None,
+        };
         let spectral = spectral_response(&out.sensor)?;
         Ok(RunPictures {
             dn,
@@ -145,6 +161,7 @@ impl RunPictures {
             histogram,
             mtf,
             trajectory,
+            nuc_drift,
             spectral,
         })
     }
@@ -157,6 +174,7 @@ impl RunPictures {
         v.extend(self.mtf.as_ref());
         v.push(&self.histogram);
         v.extend(self.trajectory.as_ref());
+        v.extend(self.nuc_drift.as_ref());
         v
     }
 

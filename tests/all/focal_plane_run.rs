@@ -30,15 +30,15 @@ fn sensor(overrides: &[&str], edit: impl FnOnce(&mut SensorConfig)) -> Sensor {
     Sensor::build(&config).unwrap()
 }
 
-/// A 300 K blackbody scene covering the detector (k = 1).
+/// A 300 K blackbody scene covering the detector and 4 pixels beyond each edge (k = 1).
 fn scene(sensor: &Sensor) -> Cube {
     let (lo, hi) = sensor.response().support_um();
     let p = SceneParams {
-        rows: DET.0,
-        cols: DET.1,
+        rows: DET.0 + 8,
+        cols: DET.1 + 8,
         oversampling: 1,
         wavelength_um: SceneParams::uniform_grid(lo, hi, 8).unwrap(),
-        fov_x_deg: (sensor.ifov_rad() * DET.1 as f64).to_degrees(),
+        fov_x_deg: (sensor.ifov_rad() * (DET.1 + 8) as f64).to_degrees(),
         range_m: Some(1000.0),
         seed: 3,
         sun: false,
@@ -135,7 +135,15 @@ fn pieces_replay_the_memory_bit_for_bit() {
     let highs: Vec<usize> = fp
         .frames
         .iter()
-        .map(|f| f.rts.as_ref().unwrap().high_at_readout.iter().filter(|h| **h).count())
+        .map(|f| {
+            f.rts
+                .as_ref()
+                .unwrap()
+                .high_at_readout
+                .iter()
+                .filter(|h| **h)
+                .count()
+        })
         .collect();
     assert!(highs.iter().any(|&h| h > 0) && highs.iter().any(|&h| h < fp.rts_pixels.len()));
 }
@@ -147,26 +155,38 @@ fn persistence_in_a_later_piece_of_a_moving_sequence_is_an_error() {
         &[
             "clock.frame_rate_hz=50",
             "motion.enabled=true",
+            // 0.04 px per frame: the scene (no margin) still covers every frame.
+            "motion.velocity_m_s=1",
         ],
         with_memory,
     );
     let cube = scene(&s);
-    let err = run(&s, &cube, &options(2, 2, Some(4))).unwrap_err().to_string();
-    assert!(err.contains("first_frame") && err.contains("persistence"), "{err}");
+    let err = run(&s, &cube, &options(2, 2, Some(4)))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("first_frame") && err.contains("persistence"),
+        "{err}"
+    );
 }
 
-/// Without `[clock]` the memory effects are refused when the sensor is built.
+/// Without `[clock]` the memory effects are refused when the sensor is loaded.
 #[test]
 fn memory_effects_need_a_clock() {
-    let mut config = presets::load(
+    let err = presets::load(
         "multimir",
         &["sequence=still".to_string()],
-        &["detector.rts.fraction=0.01".to_string(), "detector.rts.dark_step_e_per_s=1e5".to_string()],
+        &[
+            "detector.rts.fraction=0.01".to_string(),
+            "detector.rts.dark_step_e_per_s=1e5".to_string(),
+        ],
     )
-    .unwrap();
-    config.clock = None;
-    let err = Sensor::build(&config).unwrap_err().to_string();
-    assert!(err.contains("detector.rts") && err.contains("[clock]"), "{err}");
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("detector.rts") && err.contains("[clock]"),
+        "{err}"
+    );
 }
 
 /// The truth files, the report's drift curve and its picture; the measured residual
@@ -234,7 +254,8 @@ fn a_persistence_ghost_is_the_charge_the_traps_release() {
             let mut data = cube.data.clone();
             if k < 2 {
                 // A patch 3× brighter in the first two frames.
-                data.slice_mut(s![.., 8..16, 10..20]).mapv_inplace(|v| v * 3.0);
+                data.slice_mut(s![.., 12..20, 14..24])
+                    .mapv_inplace(|v| v * 3.0);
             }
             Cube::new(data, cube.meta.clone()).unwrap()
         })
