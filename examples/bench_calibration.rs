@@ -41,7 +41,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         })
         .collect::<Result<_, _>>()?;
     let mean_e = Array2::from_shape_fn((rows, cols), |(_, c)| column_e[c]);
-    let exposure = Exposure::new(&sensor, &mean_e, 1)?;
+    let mut exposure = Exposure::new(&sensor, &mean_e, 1, 1)?;
     let dn = exposure.expose(&mean_e, 0)?;
     let options = CalibrationOptions::default();
     println!(

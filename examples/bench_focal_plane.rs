@@ -31,7 +31,10 @@ fn readout(all: bool) -> ReadoutNoiseConfig {
     toml::from_str(toml).expect("readout config")
 }
 
-fn configs() -> Vec<(&'static str, Box<dyn Fn(&mut SensorConfig)>)> {
+/// One way to switch an effect on.
+type Edit = Box<dyn Fn(&mut SensorConfig)>;
+
+fn configs() -> Vec<(&'static str, Edit)> {
     vec![
         (
             "readout noise (pink per output)",
