@@ -335,7 +335,8 @@ pub fn run(args: RunArgs) -> Result<()> {
             &read,
             args.quiet,
             args.require_temperature,
-        )?;
+        )
+        .map_err(|e| name_final(&set, e))?;
         if shared_gain.is_none() {
             shared_gain = Some(out.report.detector.gain_dn_per_e);
         }
@@ -344,7 +345,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     let refs: Vec<(f64, &pipeline::RunOutput)> = outs.iter().map(|(l, o)| (*l, o)).collect();
     let rgb = pipeline::false_colour_composite(&refs)?;
     let p = set.staging_dir().join("composite.png");
-    eoir::io::raster::write_png_rgb8(&p, rgb.view())?;
+    eoir::io::raster::write_png_rgb8(&p, rgb.view()).map_err(|e| set.name_final(e))?;
     let final_png = set.final_path(&p);
     print_written(&set.commit()?, args.quiet);
     if !args.quiet {

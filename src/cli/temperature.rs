@@ -184,11 +184,14 @@ pub fn temperature(args: TemperatureArgs) -> Result<()> {
         }
     };
     let set = ProductSet::begin(&args.output)?.replacing("temperature");
-    let p = set.staging_dir().join("temperature.tiff");
-    eoir::io::raster::write_tiff_f32(&p, temperature.view())?;
+    // Errors while staging name the product's final path, not its hidden staging place.
+    set.write("temperature.tiff", |p| {
+        eoir::io::raster::write_tiff_f32(p, temperature.view())
+    })?;
     if let Some(l) = radiance {
-        let p = set.staging_dir().join("radiance.tiff");
-        eoir::io::raster::write_tiff_f32(&p, l.view())?;
+        set.write("radiance.tiff", |p| {
+            eoir::io::raster::write_tiff_f32(p, l.view())
+        })?;
     }
     for p in set.commit()? {
         println!("wrote {}", p.display());

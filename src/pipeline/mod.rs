@@ -309,8 +309,7 @@ pub fn run(
     imaging.release_frame_buffers();
     let (mut frames, mut exposure) = (done.frames, done.exposure);
     let focal_plane = FocalPlaneTruth::take(&mut exposure, options.first_frame);
-    let mut read_warnings = reader.warnings();
-    read_warnings.extend(done.reader_warnings);
+    let read_warnings = [reader.warnings(), done.reader_warnings].concat();
     add_late_warnings(read_warnings, exposure.model().warnings(), &mut warnings);
     let t_cal = Instant::now();
     let calibration = options.calibration.as_ref();
