@@ -29,7 +29,7 @@ def memory_sensor():
 def test_truth_arrays_and_dataset(memory_sensor, small_scene):
     c = small_scene
     r = eoir.run(memory_sensor, c.radiance, c.wavelength_um, c.fov_deg, frames=4,
-                 calibrate=False, range_m=c.range_m)
+                 calibrate=False, range_m=c.range_m, as_dataset=False)
     fp = r.focal_plane
     n = len(fp["rts_row"])
     assert n > 0 and fp["rts_high_fraction"].shape == (4, n)
@@ -41,7 +41,7 @@ def test_truth_arrays_and_dataset(memory_sensor, small_scene):
     assert fp["drift_offset_e"][3].std() > fp["drift_offset_e"][1].std() > 0
     assert r.report["focal_plane"]["effects"] == ["rts", "drift"]
     ds = eoir.run(memory_sensor, c.radiance, c.wavelength_um, c.fov_deg, frames=4,
-                  calibrate=False, range_m=c.range_m, as_dataset=True)
+                  calibrate=False, range_m=c.range_m)
     assert ds["rts_high_fraction"].dims == ("frame", "rts_pixel")
     assert ds["drift_offset_e"].attrs["units"] == "e-"
     np.testing.assert_array_equal(ds["rts_row"].values, fp["rts_row"])
@@ -50,7 +50,7 @@ def test_truth_arrays_and_dataset(memory_sensor, small_scene):
 def test_a_still_sensor_has_no_focal_plane(small_sensor, small_scene):
     c = small_scene
     r = eoir.run(small_sensor, c.radiance, c.wavelength_um, c.fov_deg, calibrate=False,
-                 range_m=c.range_m)
+                 range_m=c.range_m, as_dataset=False)
     assert r.focal_plane is None and "focal_plane" not in r.report
 
 
@@ -61,7 +61,7 @@ def test_dask_pieces_replay_the_memory(memory_sensor, small_scene):
     c = small_scene
     seq = np.repeat(c.radiance[None], 5, axis=0)
     ref = eoir.run(memory_sensor, seq, c.wavelength_um, c.fov_deg, seed=4, calibrate=False,
-                   range_m=c.range_m)
+                   range_m=c.range_m, as_dataset=False)
     dn = edask.run_frames(memory_sensor, da.from_array(seq, chunks=(2, -1, -1, -1)),
                           c.wavelength_um, c.fov_deg, seed=4, range_m=c.range_m)
     np.testing.assert_array_equal(dn.compute(scheduler="threads"), ref.dn)

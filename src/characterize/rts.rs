@@ -13,7 +13,9 @@
 //!    at least `min_frames` frames,
 //! 3. measures the separation of the two classes in units of the pooled within-class
 //!    standard deviation, `s = (μ_1 − μ_0) / sqrt((SS_0 + SS_1)/(N − 2))`,
-//! 4. flags the pixel when `s ≥ threshold_sigma`.
+//! 4. flags the pixel when `s ≥ threshold_sigma`, with the pooled σ floored at a quarter of
+//!    the array's median (a pixel without temporal noise — dead, hot, stuck — whose value
+//!    moves by one DN with the frame median would otherwise have s = ∞).
 //!
 //! For a pure Gaussian pixel the optimal split is near the median and s ≈ 2·0.798/0.603
 //! ≈ 2.65 (the half-normal means ±0.798σ, the half-normal standard deviation 0.603σ), so
@@ -120,7 +122,8 @@ pub fn find_rts_pixels(stack: ArrayView3<f64>, search: &RtsSearch) -> Result<Vec
     } else {
         vec![0.0; frames]
     };
-    let found: Vec<Vec<RtsDetection>> = (0..rows)
+    // Every pixel's split: (pixel, step, high fraction, pooled within-level σ).
+    let splits: Vec<Vec<(usize, f64, f64, f64)>> = (0..rows)
         .into_par_iter()
         .map(|r| {
             let mut out = Vec::new();
@@ -131,28 +134,56 @@ pub fn find_rts_pixels(stack: ArrayView3<f64>, search: &RtsSearch) -> Result<Vec
                 for (k, s) in series.iter_mut().enumerate() {
                     *s = stack[[k, r, c]] - medians[k];
                 }
-                if let Some((step, high_fraction, separation_sigma)) =
+                if let Some((step, high_fraction, pooled)) =
                     two_level_split(&mut series, &mut prefix, &mut prefix_sq, search.min_frames)
                 {
-                    if separation_sigma >= search.threshold_sigma {
-                        out.push(RtsDetection {
-                            pixel: r * cols + c,
-                            row: r,
-                            col: c,
-                            step,
-                            high_fraction,
-                            separation_sigma,
-                        });
-                    }
+                    out.push((r * cols + c, step, high_fraction, pooled));
                 }
             }
             out
         })
         .collect();
-    Ok(found.into_iter().flatten().collect())
+    let splits: Vec<(usize, f64, f64, f64)> = splits.into_iter().flatten().collect();
+    // A pixel without temporal noise (dead, hot, stuck, saturated) whose values move by a
+    // quantum with the frame median is no RTS pixel: its spread is floored at a quarter of
+    // the array's typical within-level σ (the median over the pixels; 0 for a noise-free
+    // stack, which keeps every exact two-level pixel).
+    let floor = {
+        let mut p: Vec<f64> = splits.iter().map(|s| s.3).collect();
+        if p.is_empty() {
+            0.0
+        } else {
+            let mid = p.len() / 2;
+            let (_, m, _) = p.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+            NOISE_FLOOR_FRACTION * *m
+        }
+    };
+    Ok(splits
+        .into_iter()
+        .filter_map(|(pixel, step, high_fraction, pooled)| {
+            let spread = pooled.max(floor);
+            let separation_sigma = if spread > 0.0 {
+                step / spread
+            } else {
+                f64::INFINITY
+            };
+            (separation_sigma >= search.threshold_sigma).then_some(RtsDetection {
+                pixel,
+                row: pixel / cols,
+                col: pixel % cols,
+                step,
+                high_fraction,
+                separation_sigma,
+            })
+        })
+        .collect())
 }
 
-/// Otsu split of one time series: (step, high fraction, separation in pooled σ), or None
+/// The floor of a pixel's within-level σ, as a fraction of the array's median
+/// (see [`find_rts_pixels`]).
+const NOISE_FLOOR_FRACTION: f64 = 0.25;
+
+/// Otsu split of one time series: (step, high fraction, pooled within-level σ), or None
 /// when the series is constant. `series` is sorted in place; the prefix buffers have
 /// length `series.len() + 1`.
 fn two_level_split(
@@ -197,12 +228,7 @@ fn two_level_split(
     if step.is_nan() || step <= 0.0 {
         return None;
     }
-    let separation = if pooled > 0.0 {
-        step / pooled
-    } else {
-        f64::INFINITY
-    };
-    Some((step, n1 / n as f64, separation))
+    Some((step, n1 / n as f64, pooled))
 }
 
 #[cfg(test)]
@@ -321,11 +347,31 @@ mod tests {
         let mut s: Vec<f64> = (0..20_000).map(|_| rng.sample(StandardNormal)).collect();
         let n = s.len();
         let (mut p, mut q) = (vec![0.0; n + 1], vec![0.0; n + 1]);
-        let (_, frac, sep) = two_level_split(&mut s, &mut p, &mut q, 3).unwrap();
+        let (step, frac, pooled) = two_level_split(&mut s, &mut p, &mut q, 3).unwrap();
+        let sep = step / pooled;
         let half = (2.0 / std::f64::consts::PI).sqrt();
         let expected = 2.0 * half / (1.0 - half * half).sqrt();
         assert!((sep - expected).abs() < 0.03, "{sep} vs {expected}");
         assert!((frac - 0.5).abs() < 0.02);
+    }
+
+    /// A pixel without noise (stuck at one DN) in a noisy quantised stack moves by one DN
+    /// with the frame median: two exact levels, no spread. It is not an RTS pixel; a real
+    /// two-level pixel beside it is found.
+    #[test]
+    fn a_noiseless_stuck_pixel_is_not_an_rts_pixel() {
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(9);
+        let mut stack = Array3::<f64>::zeros((60, 16, 16));
+        stack.mapv_inplace(|_| (1000.0 + 4.5 * rng.sample::<f64, _>(StandardNormal)).round());
+        for k in 0..60 {
+            stack[[k, 3, 3]] = 1200.0; // stuck
+            if (k / 7) % 2 == 1 {
+                stack[[k, 9, 11]] += 45.0; // RTS, 10 σ
+            }
+        }
+        let found = find_rts_pixels(stack.view(), &RtsSearch::default()).unwrap();
+        let at: Vec<(usize, usize)> = found.iter().map(|d| (d.row, d.col)).collect();
+        assert_eq!(at, vec![(9, 11)], "{found:?}");
     }
 
     #[test]
