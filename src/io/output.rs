@@ -171,16 +171,21 @@ pub fn install_signal_handler() -> Result<()> {
                             // Holding the lock: a product set being moved into place
                             // finishes first, and nothing new is registered meanwhile.
                             let list = cleanup_list();
+                            // Nothing registered: no set was being staged (none begun, or
+                            // the last one already moved into place, complete).
+                            let what = if list.is_empty() {
+                                "no unfinished outputs to remove"
+                            } else {
+                                "removed unfinished outputs"
+                            };
                             remove_registered(&list);
                             // A SIGBUS on a mapped input sends SIGTERM to get here
                             // (`mapped::install_sigbus_message`, which said why).
                             let code = if super::mapped::sigbus_seen() {
-                                eprintln!("eoir: removed unfinished outputs");
+                                eprintln!("eoir: {what}");
                                 super::mapped::SIGBUS_EXIT_STATUS
                             } else {
-                                eprintln!(
-                                    "eoir: interrupted (signal {sig}); removed unfinished outputs"
-                                );
+                                eprintln!("eoir: interrupted (signal {sig}); {what}");
                                 128 + sig
                             };
                             // `_exit`, still holding the lock: no atexit handlers (libhdf5's
