@@ -1,9 +1,11 @@
 //! Focal-plane memory benchmark (issue 35): the detector seconds per 640 × 512 frame that
-//! each effect of docs/focal-plane.md adds to a MultimIR run on a clock (50 Hz, a still
-//! camera on a static 300 K scene), measured through `eoir::pipeline::run` (the report's
-//! `timings_s.detector`, which covers the memory's step and the exposure).
+//! each effect of docs/focal-plane.md adds to a MultimIR run (its detector set to
+//! 640 × 512) on a clock (50 Hz, a still camera on a static 300 K scene), measured through
+//! `eoir::pipeline::run` (the report's `timings_s.detector`, which covers the memory's step
+//! and the exposure).
 //!
-//! Each configuration runs `F` frames (default 20), `EOIR_BENCH_REPEAT` times (default 5)
+//! Each configuration runs `F` frames (default 60: 1.2 s, so the drift draws a new step of
+//! its 1 s walk grid once), `EOIR_BENCH_REPEAT` times (default 5)
 //! back to back with the baseline; the figure is the median over the repeats of
 //! (detector s per frame − the baseline's in the same repeat), so a noisy shared host
 //! shifts both alike. Products are not written.
@@ -90,6 +92,8 @@ fn sensor(edit: &dyn Fn(&mut SensorConfig)) -> Sensor {
         &[
             "clock.frame_rate_hz=50".to_string(),
             "motion.enabled=false".to_string(),
+            "detector.rows=512".to_string(),
+            "detector.cols=640".to_string(),
         ],
     )
     .expect("multimir");
@@ -101,7 +105,7 @@ fn main() {
     let frames: usize = std::env::args()
         .nth(1)
         .map(|a| a.parse().expect("FRAMES"))
-        .unwrap_or(20);
+        .unwrap_or(60);
     let repeat: usize = std::env::var("EOIR_BENCH_REPEAT")
         .ok()
         .and_then(|v| v.parse().ok())
@@ -152,7 +156,9 @@ fn main() {
         v[v.len() / 2]
     };
     println!(
-        "640 x 512, {frames} frames, {repeat} repeats: baseline detector {:.2} ms per frame",
+        "{} x {}, {frames} frames, {repeat} repeats: baseline detector {:.2} ms per frame",
+        d.cols,
+        d.rows,
         median(&mut baseline) * 1e3
     );
     for (i, (name, _)) in all.iter().enumerate().skip(1) {

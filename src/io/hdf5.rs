@@ -117,6 +117,7 @@ impl Hdf5Reader {
         // Refuses FIFOs, devices and directories without blocking, before libhdf5 opens it.
         drop(crate::io::input::open_regular(path)?);
         let file = File::open(path).ctx(path, "not a readable HDF5 file")?;
+        close_on_exec(path);
         let mut warnings = Vec::new();
         let sequence = file.link_exists(FRAMES);
         if !sequence && !file.link_exists(RADIANCE) {
@@ -721,10 +722,48 @@ fn check_attr_names(owner: &str, attrs: &[(&str, String)]) -> Result<()> {
 /// same content gives the same bytes (a rerun with the same seed reproduces every product
 /// file exactly; HDF5 would otherwise stamp the root group with the time of writing).
 fn create_file(tmp: &Path) -> Result<File> {
-    File::with_options()
+    let file = File::with_options()
         .with_fcpl(|p| p.obj_track_times(false))
         .create(tmp)
-        .ctx(tmp, "cannot create HDF5 file")
+        .ctx(tmp, "cannot create HDF5 file")?;
+    close_on_exec(tmp);
+    Ok(file)
+}
+
+/// Marks the descriptors this process holds on `path` close-on-exec. libhdf5 opens files
+/// without `O_CLOEXEC` and locks them with `flock`: a child process started while the file
+/// is open (a program embedding eoir that spawns tools, a test harness running commands in
+/// parallel) would inherit the descriptor, and with it the lock, for its whole life — and
+/// the next open of the file would fail with "unable to lock file". Linux only (the
+/// descriptors are found in `/proc/self/fd`); elsewhere, and on any failure, nothing
+/// changes.
+fn close_on_exec(path: &Path) {
+    #[cfg(target_os = "linux")]
+    {
+        let Ok(target) = std::fs::canonicalize(path) else {
+            return;
+        };
+        let Ok(entries) = std::fs::read_dir("/proc/self/fd") else {
+            return;
+        };
+        for e in entries.flatten() {
+            let Some(fd) = e.file_name().to_str().and_then(|n| n.parse::<i32>().ok()) else {
+                continue;
+            };
+            if std::fs::read_link(e.path()).is_ok_and(|l| l == target) {
+                // SAFETY: fcntl on a descriptor number this process holds open (a stale
+                // number fails with EBADF, which is ignored); only the FD_CLOEXEC flag is set.
+                unsafe {
+                    let flags = libc::fcntl(fd, libc::F_GETFD);
+                    if flags >= 0 {
+                        libc::fcntl(fd, libc::F_SETFD, flags | libc::FD_CLOEXEC);
+                    }
+                }
+            }
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = path;
 }
 
 /// Writes one HDF5 file holding named 2-D products (e.g. `"dn"` u16, `"electrons_mean"`,
