@@ -116,7 +116,10 @@ impl Hdf5Reader {
     pub fn open_with(path: &Path, options: &ReadOptions) -> Result<Self> {
         // Refuses FIFOs, devices and directories without blocking, before libhdf5 opens it.
         drop(crate::io::input::open_regular(path)?);
-        let file = File::open(path).ctx(path, "not a readable HDF5 file")?;
+        let file = File::with_options()
+            .with_fapl(|p| p.file_locking(false))
+            .open(path)
+            .ctx(path, "not a readable HDF5 file")?;
         close_on_exec(path);
         let mut warnings = Vec::new();
         let sequence = file.link_exists(FRAMES);
@@ -720,10 +723,14 @@ fn check_attr_names(owner: &str, attrs: &[(&str, String)]) -> Result<()> {
 
 /// Creates (truncates) an HDF5 file for writing without object modification times, so the
 /// same content gives the same bytes (a rerun with the same seed reproduces every product
-/// file exactly; HDF5 would otherwise stamp the root group with the time of writing).
+/// file exactly; HDF5 would otherwise stamp the root group with the time of writing), and
+/// without HDF5's own file lock: eoir writes a temporary file and renames it (readers
+/// never see a file being written), and a lock held through a descriptor that a child
+/// process inherited would make the next open fail ("unable to lock file").
 fn create_file(tmp: &Path) -> Result<File> {
     let file = File::with_options()
         .with_fcpl(|p| p.obj_track_times(false))
+        .with_fapl(|p| p.file_locking(false))
         .create(tmp)
         .ctx(tmp, "cannot create HDF5 file")?;
     close_on_exec(tmp);

@@ -11,6 +11,14 @@ use hdf5_metno::types::{FixedAscii, VarLenUnicode};
 use hdf5_metno::File;
 use ndarray::{Array2, Array3, Array4};
 
+/// HDF5 file options as eoir uses them: without HDF5's file lock (libhdf5 refuses to open
+/// a file twice in one process with different locking flags).
+fn unlocked() -> hdf5_metno::FileBuilder {
+    let mut b = File::with_options();
+    b.with_fapl(|p| p.file_locking(false));
+    b
+}
+
 /// Opens a file the test has just written. HDF5 locks its files with `flock` and opens them
 /// without close-on-exec, so an `eoir` child spawned at that moment by a test running in
 /// parallel inherits the descriptor, and with it the lock, until it exits: the open is
@@ -69,7 +77,7 @@ fn put_str(loc: &hdf5_metno::Location, name: &str, v: &str) {
 
 /// Writes `/radiance` with the HDF5 library directly, with only the attributes listed.
 fn write_direct(path: &Path, data: &Array3<f32>, wavelength: Option<&[f64]>, units: Option<&str>) {
-    let file = File::create(path).unwrap();
+    let file = unlocked().create(path).unwrap();
     let ds = file
         .new_dataset_builder()
         .with_data(data.view())
@@ -104,7 +112,7 @@ fn round_trip_is_exact() {
     }
 
     // The layout, checked with the HDF5 library: f32 [band,row,col] and the attributes.
-    let file = open_locked(&path, |p| File::open(p));
+    let file = open_locked(&path, |p| unlocked().open(p));
     let ds = file.dataset("radiance").unwrap();
     assert_eq!(ds.shape(), vec![5, 6, 7]);
     let raw: Array3<f32> = ds.as_reader().no_convert().read().unwrap();
@@ -146,7 +154,7 @@ fn sequence_in_frames_dataset() {
     let truth = Array4::from_shape_fn((n, bands, rows, cols), |(f, b, r, c)| value(f, b, r, c));
     {
         // Written by "another tool": the HDF5 library directly, wavelengths as f32.
-        let file = File::create(&path).unwrap();
+        let file = unlocked().create(&path).unwrap();
         let ds = file
             .new_dataset_builder()
             .with_data(truth.view())
@@ -223,7 +231,7 @@ fn missing_attribute_is_named() {
     assert!(err.contains("3 values") && err.contains("2 bands"), "{err}");
 
     let path = dir.path().join("empty.h5");
-    File::create(&path).unwrap();
+    unlocked().create(&path).unwrap();
     let err = Hdf5Reader::open(&path).err().unwrap().to_string();
     assert!(
         err.contains("/radiance") && err.contains("/frames"),
@@ -239,7 +247,7 @@ fn fixed_length_string_attribute_is_read() {
     let data = Array3::from_elem((1, 2, 2), 0.5f32);
     write_direct(&path, &data, Some(&[10.0]), None);
     {
-        let file = open_locked(&path, |p| File::open_rw(p));
+        let file = open_locked(&path, |p| unlocked().open_rw(p));
         let ds = file.dataset("radiance").unwrap();
         let v = FixedAscii::<10>::from_ascii(b"W m-2 sr-1").unwrap();
         ds.new_attr::<FixedAscii<10>>()
@@ -314,7 +322,7 @@ fn bundle_is_readable_back() {
     )
     .unwrap();
 
-    let file = open_locked(&path, |p| File::open(p));
+    let file = open_locked(&path, |p| unlocked().open(p));
     let ds = file.dataset("dn").unwrap();
     let back: Array2<u16> = ds.as_reader().no_convert().read_2d().unwrap();
     assert_eq!(back, dn);
@@ -497,7 +505,7 @@ fn write_with(
         1.0 + b as f32 + 0.1 * r as f32 + 0.01 * c as f32
     });
     write_direct(path, &data, Some(wavelength), None);
-    let file = open_locked(path, |p| File::open_rw(p));
+    let file = open_locked(path, |p| unlocked().open_rw(p));
     let ds = file.dataset("radiance").unwrap();
     for (name, v) in f64_attrs {
         ds.new_attr_builder().with_data(*v).create(*name).unwrap();
@@ -707,7 +715,7 @@ fn read_bands_matches_read_band_in_any_order() {
     ] {
         let p = dir.path().join(name);
         {
-            let file = File::create(&p).unwrap();
+            let file = unlocked().create(&p).unwrap();
             let builder = file.new_dataset_builder();
             let builder = if chunked {
                 builder.chunk((3, 2, cols))
