@@ -64,6 +64,7 @@ pub mod constants;
 pub mod detector;
 pub mod display;
 pub mod error;
+pub mod fft_size;
 pub mod imaging;
 pub mod input;
 pub mod io;

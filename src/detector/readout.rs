@@ -298,25 +298,6 @@ impl Clock {
     }
 }
 
-/// Smallest even 5-smooth number (2^a·3^b·5^c) ≥ n: a fast FFT length.
-fn fft_len(n: usize) -> usize {
-    let mut m = n.max(2);
-    loop {
-        if m % 2 == 0 {
-            let mut r = m;
-            for p in [2, 3, 5] {
-                while r % p == 0 {
-                    r /= p;
-                }
-            }
-            if r == 1 {
-                return m;
-            }
-        }
-        m += 1;
-    }
-}
-
 /// A pink series of `len` samples, each `step` ticks apart, in a frame of `frame_ticks`
 /// ticks: PSD A²/f from f_lo = 1/(frame_ticks·dt) to the Nyquist frequency 1/(2·step·dt).
 #[derive(Debug, Clone, Copy)]
@@ -360,7 +341,7 @@ impl PinkSeries {
     /// Nyquist bin real with variance P_k. The unnormalised inverse real FFT then gives a
     /// stationary series of variance Σ P_k = A²·ln(f_N/f_lo) exactly.
     fn draw(&self, a: f64, rng: &mut Xoshiro256PlusPlus) -> Vec<f32> {
-        let l = fft_len(2 * self.len);
+        let l = crate::fft_size::next_fast_even_len(2 * self.len);
         let half = l / 2;
         // In units of Δf: f_lo = L·step/frame_ticks, f_N = L/2.
         let lo_bins = (l * self.step) as f64 / self.frame_ticks as f64;

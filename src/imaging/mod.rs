@@ -231,21 +231,7 @@ pub fn check_coverage(response: &Spectrum, wavelength_um: &[f64]) -> Result<()> 
 }
 
 /// The smallest 2,3,5-smooth integer ≥ n (fast FFT sizes).
-pub fn next_fast_len(n: usize) -> usize {
-    let mut m = n.max(1);
-    loop {
-        let mut r = m;
-        for p in [2, 3, 5] {
-            while r % p == 0 {
-                r /= p;
-            }
-        }
-        if r == 1 {
-            return m;
-        }
-        m += 1;
-    }
-}
+pub use crate::fft_size::next_fast_len;
 
 /// Timings and sizes of one imaging run.
 #[derive(Debug, Clone, Default, PartialEq)]

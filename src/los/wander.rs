@@ -45,23 +45,6 @@ pub(crate) struct Wander {
     v: [Vec<f64>; 2],
 }
 
-/// The smallest 5-smooth integer (2^a·3^b·5^c) ≥ n, a fast FFT length.
-fn fast_len(n: usize) -> usize {
-    let mut m = n.max(1);
-    loop {
-        let mut r = m;
-        for p in [2, 3, 5] {
-            while r % p == 0 {
-                r /= p;
-            }
-        }
-        if r == 1 {
-            return m;
-        }
-        m += 1;
-    }
-}
-
 impl Wander {
     /// Synthesises the wander of `psd` for a sequence spanning `span_s` with integration
     /// time `integration_time_s`, from the stream `(seed, LosWander, 0, axis)`.
@@ -88,7 +71,7 @@ impl Wander {
                 ),
             ));
         }
-        let m = fast_len((needed as usize).max(16));
+        let m = crate::fft_size::next_fast_len((needed as usize).max(16));
         crate::limits::check_alloc(
             "the line-of-sight wander grid",
             &[
