@@ -110,20 +110,27 @@ impl FocalPlaneMemory {
             let f = pixels.frame(&|r| t.window_s(r), &|r| t.readout_s(r));
             // The dark-current step integrates over the time spent high (shot noise
             // applies); the offset step is read as a level (no shot noise).
-            let mut dark = Array2::<f64>::zeros((rows, cols));
-            let mut offset = Array2::<f64>::zeros((rows, cols));
-            for (k, &p) in pixels.pixels().iter().enumerate() {
-                let (i, j) = (p / cols, p % cols);
-                dark[[i, j]] = cfg.dark_step_e_per_s * f.high_fraction[k] * t.integration_time_s;
-                if f.high_at_readout[k] {
-                    offset[[i, j]] = cfg.offset_step_e;
+            // Only the steps that are on get a frame-sized map.
+            let map = |value: &dyn Fn(usize) -> f64| {
+                let mut a = Array2::<f64>::zeros((rows, cols));
+                for (k, &p) in pixels.pixels().iter().enumerate() {
+                    a[[p / cols, p % cols]] = value(k);
                 }
-            }
+                a
+            };
             if cfg.dark_step_e_per_s != 0.0 {
-                extras.pre_shot_e = Some(dark);
+                extras.pre_shot_e = Some(map(&|k| {
+                    cfg.dark_step_e_per_s * f.high_fraction[k] * t.integration_time_s
+                }));
             }
             if cfg.offset_step_e != 0.0 {
-                extras.offset_e = Some(offset);
+                extras.offset_e = Some(map(&|k| {
+                    if f.high_at_readout[k] {
+                        cfg.offset_step_e
+                    } else {
+                        0.0
+                    }
+                }));
             }
             truth.rts = Some(f);
         }

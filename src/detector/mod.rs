@@ -574,14 +574,7 @@ impl DetectorInstance {
         frame_index: u64,
     ) -> Result<Array2<u16>> {
         let m = &self.model;
-        self.check_mean_shape(mean_e)?;
-        if let Some((idx, v)) = mean_e.indexed_iter().find(|(_, v)| !v.is_finite()) {
-            return Err(Error::param(
-                format!("mean electrons at row {}, column {}", idx.0, idx.1),
-                v,
-                "a finite number of electrons",
-            ));
-        }
+        self.check_mean(mean_e)?;
         if m.couples_pixels() {
             return self.expose_staged(mean_e, exposure, frame_index, &FrameExtras::default());
         }
@@ -609,6 +602,13 @@ impl DetectorInstance {
         if extras.is_empty() {
             return self.expose(mean_e, frame_index);
         }
+        self.check_mean(mean_e)?;
+        self.expose_staged(mean_e, self.model.exposure_key(), frame_index, extras)
+    }
+
+    /// Refuses a mean-electron image of another shape than the detector, or with a
+    /// non-finite value.
+    fn check_mean(&self, mean_e: &Array2<f64>) -> Result<()> {
         self.check_mean_shape(mean_e)?;
         if let Some((idx, v)) = mean_e.indexed_iter().find(|(_, v)| !v.is_finite()) {
             return Err(Error::param(
@@ -617,7 +617,7 @@ impl DetectorInstance {
                 "a finite number of electrons",
             ));
         }
-        self.expose_staged(mean_e, self.model.exposure_key(), frame_index, extras)
+        Ok(())
     }
 
     /// Refuses a mean-electron image of another shape than the detector.
@@ -715,14 +715,20 @@ impl DetectorInstance {
                     e += m.read_noise_e * read_rng.sample::<f64, _>(StandardNormal);
                 }
                 let dn = adc(m.gain_dn_per_e * e + m.offset_dn, m.max_dn);
-                match defects[j] {
-                    1 => 0,
-                    2 => m.max_dn as u16,
-                    3 => stuck.as_ref().map_or(dn, |s| s[j]),
-                    _ => dn,
-                }
+                apply_defect(defects[j], dn, m.max_dn, stuck.as_ref().map(|s| s[j]))
             })
             .collect()
+    }
+}
+
+/// Step 9: a defect's DN in place of `dn` (map code 1 dead → 0, 2 hot → full scale, 3 stuck
+/// → its own `stuck_dn`; 0 keeps `dn`).
+pub(crate) fn apply_defect(code: u8, dn: u16, max_dn: f64, stuck_dn: Option<u16>) -> u16 {
+    match code {
+        1 => 0,
+        2 => max_dn as u16,
+        3 => stuck_dn.unwrap_or(dn),
+        _ => dn,
     }
 }
 

@@ -28,8 +28,8 @@ use rayon::prelude::*;
 
 use super::rng::{temporal_stream, Effect};
 use super::{
-    adc, apply_fpn, apply_nonlinearity, clip_full_well, ipc, mean_total_e, readout, shot,
-    DetectorInstance,
+    adc, apply_defect, apply_fpn, apply_nonlinearity, clip_full_well, ipc, mean_total_e, readout,
+    shot, DetectorInstance,
 };
 use crate::error::Result;
 
@@ -157,12 +157,12 @@ impl DetectorInstance {
             .and(&values_e)
             .par_for_each(|(i, j), out, &e| {
                 let v = adc(m.gain_dn_per_e * e + m.offset_dn, m.max_dn);
-                *out = match self.defects[[i, j]] {
-                    1 => 0,
-                    2 => m.max_dn as u16,
-                    3 => self.stuck_dn.as_ref().map_or(v, |s| s[[i, j]]),
-                    _ => v,
-                };
+                *out = apply_defect(
+                    self.defects[[i, j]],
+                    v,
+                    m.max_dn,
+                    self.stuck_dn.as_ref().map(|s| s[[i, j]]),
+                );
             });
         dn
     }
