@@ -502,27 +502,30 @@ fn a_full_disk_is_an_error_that_leaves_the_old_set() {
     }
 }
 
+/// `eoir run` of the fixture scene `s.hdr` through a small still MultimIR into `out`, with
+/// `extra` arguments.
+fn still_run(out: &str, extra: &[&str]) -> Vec<OsString> {
+    // A still camera: a moving one would drift the frames off the fixture scene.
+    let mut v = strings(&[
+        "run",
+        "--sensor",
+        "multimir",
+        "--option",
+        "sequence=still",
+        "--quiet",
+    ]);
+    v.extend(strings(&SMALL));
+    v.extend(strings(&["s.hdr", "-o", out]));
+    v.extend(strings(extra));
+    os(&v)
+}
+
 #[test]
 fn two_runs_into_one_folder_end_with_one_complete_set() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     fixture_scene(d);
-    let run = |out: &str, seed: &str| -> Vec<OsString> {
-        // A still camera: the default aircraft clock would drift 12 frames off the scene.
-        let mut v = strings(&[
-            "run",
-            "--sensor",
-            "multimir",
-            "--option",
-            "sequence=still",
-            "--quiet",
-        ]);
-        v.extend(strings(&SMALL));
-        v.extend(strings(&[
-            "s.hdr", "-o", out, "--frames", "12", "--seed", seed,
-        ]));
-        os(&v)
-    };
+    let run = |out: &str, seed: &str| still_run(out, &["--frames", "12", "--seed", seed]);
     let volatile = ["report.json", "report.html"];
     let mut refs = Vec::new();
     for seed in ["1", "2"] {
@@ -576,19 +579,7 @@ fn a_shorter_run_replaces_the_longer_set_and_leaves_other_files() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     fixture_scene(d);
-    let run = |out: &str, frames: &str| -> Vec<OsString> {
-        let mut v = strings(&[
-            "run",
-            "--sensor",
-            "multimir",
-            "--option",
-            "sequence=still",
-            "--quiet",
-        ]);
-        v.extend(strings(&SMALL));
-        v.extend(strings(&["s.hdr", "-o", out, "--frames", frames]));
-        os(&v)
-    };
+    let run = |out: &str, frames: &str| still_run(out, &["--frames", frames]);
     let volatile = ["report.json", "report.html"];
     for (out, frames) in [("fresh", "3"), ("out", "12")] {
         let o = finish_within(spawn_limited(d, &run(out, frames)), "run", LONG_RUN_AFTER);
