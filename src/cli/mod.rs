@@ -2,6 +2,7 @@
 
 use anyhow::{bail, Context, Result};
 
+pub mod assess;
 pub mod characterize;
 pub mod defects;
 pub mod edge_mtf;

@@ -14,7 +14,7 @@
 //!   left out of this instance (they are outliers, not noise), and the focal-plane memory
 //!   effects (RTS, persistence, drift) and readout-ordered noise are not exposed here;
 //! - a slanted edge (5°) imaged by the whole engine ([`crate::pipeline::run`]) on the same
-//!   window at 4 scene samples per pixel, measured by
+//!   window at 4 scene samples per pixel (the same defect-free array), measured by
 //!   [`crate::processing::edge_mtf::slanted_edge_mtf`]: MTF50, MTF at Nyquist and RER from
 //!   its edge-spread function. A thermal sensor sees a 295 K / 310 K edge; a reflective one
 //!   a 5000 K / 5772 K blackbody edge scaled so that the bright side fills half the well.
@@ -266,8 +266,12 @@ pub struct Measured {
     pub mtf50_cy_per_px: Option<f64>,
     /// Slanted-edge MTF at Nyquist.
     pub mtf_nyquist: Option<f64>,
-    /// RER from the edge-spread function.
+    /// RER from the edge's measured MTF ([`giqe::rer_from_sampled_mtf`], up to 1
+    /// cycle/pixel).
     pub rer: Option<f64>,
+    /// RER read off the edge-spread function at ±0.5 px ([`giqe::rer_from_esf`]; its
+    /// quarter-pixel bins blur it slightly).
+    pub rer_esf: Option<f64>,
     /// The edge's angle, degrees.
     pub edge_angle_deg: Option<f64>,
     /// RER of the system MTF along the measured edge's normal (for the comparison).
@@ -506,14 +510,12 @@ pub fn analytic(sensor: &Sensor, opts: &AssessOptions) -> Result<Analytic> {
     })
 }
 
-/// `sensor`'s configuration on a `window` × `window` array, optionally without defects.
-fn windowed(sensor: &Sensor, window: usize, defects: bool) -> Result<Sensor> {
+/// `sensor`'s configuration on a `window` × `window` array without defective pixels.
+fn windowed(sensor: &Sensor, window: usize) -> Result<Sensor> {
     let mut c: SensorConfig = sensor.config().clone();
     c.detector.rows = window;
     c.detector.cols = window;
-    if !defects {
-        c.detector.defects = None;
-    }
+    c.detector.defects = None;
     Sensor::build(&c)
 }
 
@@ -545,7 +547,7 @@ pub fn measure(sensor: &Sensor, opts: &AssessOptions, analytic: &Analytic) -> Re
     let mut notes = Vec::new();
 
     // 3-D noise and NETD on a defect-free instance.
-    let clean = windowed(sensor, w, false)?;
+    let clean = windowed(sensor, w)?;
     let model = clean.detector();
     let instance = DetectorInstance::new(model, opts.seed)?;
     let cube = uniform_stack(&instance, analytic.signal_e, opts.frames, 0)?;
@@ -571,10 +573,11 @@ pub fn measure(sensor: &Sensor, opts: &AssessOptions, analytic: &Analytic) -> Re
     };
 
     // Slanted edge through the whole engine.
-    let edge_sensor = windowed(sensor, w, true)?;
+    let edge_sensor = clean;
     let mut m50 = None;
     let mut nyq = None;
     let mut rer = None;
+    let mut rer_esf = None;
     let mut angle = None;
     let mut rer_normal = None;
     let mut curve = None;
@@ -586,9 +589,10 @@ pub fn measure(sensor: &Sensor, opts: &AssessOptions, analytic: &Analytic) -> Re
             nyq = m.mtf_nyquist;
             angle = Some(m.angle_deg);
             match giqe::rer_from_esf(&m.esf, 1.0 / edge_mtf::OVERSAMPLING as f64, 0.15) {
-                Ok(r) => rer = Some(r),
-                Err(e) => notes.push(format!("RER not measured: {e}")),
+                Ok(r) => rer_esf = Some(r),
+                Err(e) => notes.push(format!("RER of the edge-spread function: {e}")),
             }
+            rer = Some(giqe::rer_from_sampled_mtf(&m.freq_cy_per_px, &m.mtf)?);
             let transfer = SensorTransfer::new(&edge_sensor)?;
             let th = m.angle_deg.to_radians();
             let (c, s) = if m.vertical {
@@ -613,6 +617,7 @@ pub fn measure(sensor: &Sensor, opts: &AssessOptions, analytic: &Analytic) -> Re
         mtf50_cy_per_px: m50,
         mtf_nyquist: nyq,
         rer,
+        rer_esf,
         edge_angle_deg: angle,
         rer_analytic_along_normal: rer_normal,
         edge_mtf: curve,
