@@ -22,7 +22,11 @@ pub struct AssessArgs {
     #[arg(long, value_name = "KEY=VALUE,…")]
     pub target: Option<String>,
     /// Ranges `START:STOP:N` in km (N ≥ 2 evenly spaced values, 0 < START < STOP).
-    #[arg(long = "range-km", value_name = "START:STOP:N", default_value = "0.5:20:40")]
+    #[arg(
+        long = "range-km",
+        value_name = "START:STOP:N",
+        default_value = "0.5:20:40"
+    )]
     pub range_km: String,
     /// Frames of the simulated uniform sequence (3-D noise, NETD).
     #[arg(long, default_value_t = 32)]
@@ -151,9 +155,10 @@ pub fn write_products(set: &eoir::io::output::ProductSet, a: &Assessment) -> Res
         "component,predicted_dn,measured_dn,predicted_e,measured_e,predicted_k,measured_k\n",
     );
     for (k, (name, p_dn)) in an.noise3d.dn.named().iter().enumerate() {
-        let m = |u: fn(&assess::Noise3dUnits) -> Option<eoir::merit::noise3d::Noise3dComponents>| {
-            me.and_then(|m| u(&m.noise3d)).map(|c| c.named()[k].1)
-        };
+        let m =
+            |u: fn(&assess::Noise3dUnits) -> Option<eoir::merit::noise3d::Noise3dComponents>| {
+                me.and_then(|m| u(&m.noise3d)).map(|c| c.named()[k].1)
+            };
         let _ = writeln!(
             csv,
             "{name},{p_dn:.6e},{},{:.6e},{},{},{}",
@@ -188,9 +193,8 @@ pub fn write_products(set: &eoir::io::output::ProductSet, a: &Assessment) -> Res
     set.write_bytes("ranges.csv", csv.as_bytes())?;
 
     // CTF_sys tables (anyone can recompute V from them).
-    let mut csv = String::from(
-        "freq_cy_per_mrad,mtf_h,ctf_eye,noise_factor,ctf_sys_h,mtf_v,ctf_sys_v\n",
-    );
+    let mut csv =
+        String::from("freq_cy_per_mrad,mtf_h,ctf_eye,noise_factor,ctf_sys_h,mtf_v,ctf_sys_v\n");
     for (h, v) in an.ctf_sys_h.iter().zip(&an.ctf_sys_v) {
         let _ = writeln!(
             csv,
@@ -264,7 +268,13 @@ pub fn write_products(set: &eoir::io::output::ProductSet, a: &Assessment) -> Res
                         label: "Nyquist",
                         x: 0.5,
                     }],
-                    y_range: Some((0.0, m.iter().copied().fold(0.0, f64::max).min(20.0 * m[0].max(1e-9)))),
+                    y_range: Some((
+                        0.0,
+                        m.iter()
+                            .copied()
+                            .fold(0.0, f64::max)
+                            .min(20.0 * m[0].max(1e-9)),
+                    )),
                     size_px: (900, 600),
                 },
             )
@@ -385,11 +395,21 @@ fn html(a: &Assessment) -> String {
         ("RER √(x·y)", Some(an.rer), None),
     ];
     for (name, x, y) in rows {
-        let _ = write!(h, "<tr><td>{name}</td><td>{}</td><td>{}</td></tr>", cell(x, 4), cell(y, 4));
+        let _ = write!(
+            h,
+            "<tr><td>{name}</td><td>{}</td><td>{}</td></tr>",
+            cell(x, 4),
+            cell(y, 4)
+        );
     }
     for (k, (name, p)) in an.noise3d.dn.named().iter().enumerate() {
         let m = me.map(|m| m.noise3d.dn.named()[k].1);
-        let _ = write!(h, "<tr><td>3-D noise {name} (DN)</td><td>{}</td><td>{}</td></tr>", cell(Some(*p), 4), cell(m, 4));
+        let _ = write!(
+            h,
+            "<tr><td>3-D noise {name} (DN)</td><td>{}</td><td>{}</td></tr>",
+            cell(Some(*p), 4),
+            cell(m, 4)
+        );
     }
     h.push_str("</table><h2>Range performance (TTP)</h2><table><tr><th>task</th><th>V50</th><th>range P = 0.5 (km)</th><th>range P = 0.8 (km)</th></tr>");
     for t in &an.tasks {

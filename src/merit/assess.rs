@@ -135,7 +135,9 @@ impl Default for AssessOptions {
             frames: 32,
             window_px: 64,
             target: TargetSpec::default(),
-            ranges_m: (0..40).map(|i| 500.0 + i as f64 * 19_500.0 / 39.0).collect(),
+            ranges_m: (0..40)
+                .map(|i| 500.0 + i as f64 * 19_500.0 / 39.0)
+                .collect(),
             elevation_deg: 90.0,
             display: None,
             analytic_only: false,
@@ -148,13 +150,21 @@ impl AssessOptions {
     pub fn validate(&self) -> Result<()> {
         self.target.validate()?;
         if !(self.temperature_k.is_finite() && self.temperature_k > 0.0) {
-            return Err(Error::param("temperature_k", self.temperature_k, "a temperature > 0 K"));
+            return Err(Error::param(
+                "temperature_k",
+                self.temperature_k,
+                "a temperature > 0 K",
+            ));
         }
         if self.frames < 2 {
             return Err(Error::param("frames", self.frames, "at least 2 frames"));
         }
         if !(16..=1024).contains(&self.window_px) {
-            return Err(Error::param("window_px", self.window_px, "16 to 1024 pixels"));
+            return Err(Error::param(
+                "window_px",
+                self.window_px,
+                "16 to 1024 pixels",
+            ));
         }
         if self.ranges_m.len() < 2
             || self.ranges_m.iter().any(|r| !(r.is_finite() && *r > 0.0))
@@ -167,7 +177,11 @@ impl AssessOptions {
             ));
         }
         if !(self.elevation_deg > 0.0 && self.elevation_deg <= 90.0) {
-            return Err(Error::param("elevation_deg", self.elevation_deg, "an elevation in (0, 90] degrees"));
+            return Err(Error::param(
+                "elevation_deg",
+                self.elevation_deg,
+                "an elevation in (0, 90] degrees",
+            ));
         }
         Ok(())
     }
@@ -308,7 +322,9 @@ fn scene_electrons(sensor: &Sensor, thermal: bool, t_k: f64, reflectance: f64) -
     if thermal {
         sensor.camera().electrons_blackbody(t_k, sensor.response())
     } else {
-        let sun = sensor.camera().electrons_blackbody(5772.0, sensor.response())?;
+        let sun = sensor
+            .camera()
+            .electrons_blackbody(5772.0, sensor.response())?;
         Ok(sun * reflectance * SUN_SOLID_ANGLE_SR / std::f64::consts::PI)
     }
 }
@@ -363,9 +379,8 @@ pub fn analytic(sensor: &Sensor, opts: &AssessOptions) -> Result<Analytic> {
 
     // Noise and NETD.
     let predicted_e = noise3d::predict_noise3d_e(&noise_model(sensor, signal_e));
-    let temporal_dn = (model.temporal_noise_dn(signal_e).powi(2)
-        + model.quantisation_noise_dn().powi(2))
-    .sqrt();
+    let temporal_dn =
+        (model.temporal_noise_dn(signal_e).powi(2) + model.quantisation_noise_dn().powi(2)).sqrt();
     let (netd_k, resp) = if thermal {
         let r = responsivity(sensor, opts.temperature_k)?;
         if r == 0.0 {
@@ -397,7 +412,13 @@ pub fn analytic(sensor: &Sensor, opts: &AssessOptions) -> Result<Analytic> {
 
     // MRTD.
     let mrtd = match netd_k {
-        Some(n) => Some(mrtd::mrtd_curve(hx, n, &MrtdObserver::flir92(rate), 0.5, 50)?),
+        Some(n) => Some(mrtd::mrtd_curve(
+            hx,
+            n,
+            &MrtdObserver::flir92(rate),
+            0.5,
+            50,
+        )?),
         None => None,
     };
 
@@ -461,7 +482,11 @@ pub fn analytic(sensor: &Sensor, opts: &AssessOptions) -> Result<Analytic> {
         contrast: contrast0,
         extinction_per_m,
     };
-    let contrast: Vec<f64> = opts.ranges_m.iter().map(|&r| target.contrast_at(r)).collect();
+    let contrast: Vec<f64> = opts
+        .ranges_m
+        .iter()
+        .map(|&r| target.contrast_at(r))
+        .collect();
     let ttp_v: Vec<f64> = opts
         .ranges_m
         .iter()
@@ -647,7 +672,9 @@ fn edge_frame(sensor: &Sensor, seed: u64, thermal: bool) -> Result<Array2<f64>> 
     };
     if !thermal {
         // Scale the bright side to half the full well.
-        let e = sensor.camera().electrons_blackbody(5772.0, sensor.response())?;
+        let e = sensor
+            .camera()
+            .electrons_blackbody(5772.0, sensor.response())?;
         let scale = 0.5 * sensor.detector().full_well_e() / e.max(f64::MIN_POSITIVE);
         cube.data.mapv_inplace(|v| (v as f64 * scale) as f32);
     }

@@ -37,9 +37,11 @@ pub fn giqe5_niirs(gsd_in: f64, rer: f64, snr: f64) -> Result<f64> {
         }
     }
     let l = rer.log10();
-    Ok(9.57 - 3.32 * gsd_in.log10() + 3.32 * (1.0 - (-1.9 / snr).exp()) * l
-        - 2.0 * l.powi(4)
-        - 1.8 / snr)
+    Ok(
+        9.57 - 3.32 * gsd_in.log10() + 3.32 * (1.0 - (-1.9 / snr).exp()) * l
+            - 2.0 * l.powi(4)
+            - 1.8 / snr,
+    )
 }
 
 /// The GSD GIQE 5 takes, inches: `gsd_m / sin(elevation)^0.25 / 0.0254` (pyBSM), the
@@ -157,7 +159,11 @@ pub fn rer_from_sampled_mtf(freq_cy_per_px: &[f64], mtf: &[f64]) -> Result<f64> 
 pub fn rer_from_esf(esf: &[f64], bin_px: f64, plateau_fraction: f64) -> Result<f64> {
     let n = esf.len();
     if n < 8 {
-        return Err(Error::param("esf", format!("{n} samples"), "at least 8 samples"));
+        return Err(Error::param(
+            "esf",
+            format!("{n} samples"),
+            "at least 8 samples",
+        ));
     }
     if !(bin_px.is_finite() && bin_px > 0.0 && bin_px <= 0.5) {
         return Err(Error::param("bin_px", bin_px, "a bin width in (0, 0.5] px"));

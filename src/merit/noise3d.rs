@@ -310,7 +310,11 @@ mod tests {
                 "{name}: measured {got}, realised {truth}, configured {}",
                 sig[k]
             );
-            assert!((got / sig[k] - 1.0).abs() < 0.3, "{name}: {got} vs {}", sig[k]);
+            assert!(
+                (got / sig[k] - 1.0).abs() < 0.3,
+                "{name}: {got} vs {}",
+                sig[k]
+            );
         }
         // Without the correction the white noise inflates the 2-D projections.
         assert!(n.raw.sigma_tv > 1.05 * n.corrected.sigma_tv, "{n:?}");

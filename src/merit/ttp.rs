@@ -164,7 +164,11 @@ pub fn ctf_sys_table(
         }
     }
     if !(sensor.noise_rel.is_finite() && sensor.noise_rel >= 0.0) {
-        return Err(Error::param("noise_rel", sensor.noise_rel, "a finite value ≥ 0"));
+        return Err(Error::param(
+            "noise_rel",
+            sensor.noise_rel,
+            "a finite value ≥ 0",
+        ));
     }
     if n < 2 {
         return Err(Error::param("n", n, "at least 2 frequencies"));
@@ -317,7 +321,13 @@ mod tests {
     #[test]
     fn eye_channel_bandwidth_matches_quadrature() {
         let q = integrate(
-            |r: f64| if r > 0.0 { (-4.4 * r.ln().powi(2)).exp() } else { 0.0 },
+            |r: f64| {
+                if r > 0.0 {
+                    (-4.4 * r.ln().powi(2)).exp()
+                } else {
+                    0.0
+                }
+            },
             1e-6,
             50.0,
             &[1.0],

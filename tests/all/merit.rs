@@ -8,7 +8,10 @@ use eoir::sensor::{presets, Sensor};
 
 fn sensor(preset: &str, options: &[&str], sets: &[&str]) -> Sensor {
     let options: Vec<String> = options.iter().map(|s| s.to_string()).collect();
-    let mut all = vec!["detector.rows=64".to_string(), "detector.cols=64".to_string()];
+    let mut all = vec![
+        "detector.rows=64".to_string(),
+        "detector.cols=64".to_string(),
+    ];
     all.extend(sets.iter().map(|s| s.to_string()));
     Sensor::build(&presets::load(preset, &options, &all).unwrap()).unwrap()
 }
@@ -41,7 +44,10 @@ fn simpson(table: &[CtfSample], contrast: f64) -> f64 {
         }
     }));
     let h = table[0].freq_cy_per_mrad;
-    assert!(table.len() % 2 == 0, "Simpson needs an even number of intervals");
+    assert!(
+        table.len() % 2 == 0,
+        "Simpson needs an even number of intervals"
+    );
     let n = y.len() - 1;
     let mut s = y[0] + y[n];
     for (i, v) in y.iter().enumerate().take(n).skip(1) {
@@ -149,13 +155,7 @@ fn range_at_p50_follows_netd_target_size_atmosphere_and_focal_length() {
     let r0 = id_p50(&base, t);
     let noisy = sensor("multimir", &[], &["detector.read_noise_e=30000"]);
     let r_noisy = id_p50(&noisy, t);
-    let small = id_p50(
-        &base,
-        TargetSpec {
-            size_m: 1.5,
-            ..t
-        },
-    );
+    let small = id_p50(&base, TargetSpec { size_m: 1.5, ..t });
     let hazy = id_p50(
         &base,
         TargetSpec {
@@ -283,5 +283,107 @@ fn worked_ttp_example_matches_the_docs() {
             missing.push(format!("{name} = {s}"));
         }
     }
-    assert!(missing.is_empty(), "docs/figures-of-merit.md lacks {missing:?}");
+    assert!(
+        missing.is_empty(),
+        "docs/figures-of-merit.md lacks {missing:?}"
+    );
+}
+
+fn eoir(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_eoir"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// `eoir assess` writes its whole product set; V recomputed from the CTF_sys table in
+/// assess.json equals the V it reports; bad flags are errors that write nothing.
+#[test]
+fn assess_cli_writes_products_whose_table_reproduces_v_and_refuses_bad_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("a");
+    let o = out.to_str().unwrap();
+    let base = [
+        "assess",
+        "--sensor",
+        "multimir",
+        "--set",
+        "detector.rows=64",
+        "--set",
+        "detector.cols=64",
+        "--frames",
+        "8",
+    ];
+    let mut args = base.to_vec();
+    args.extend(["--range-km", "0.5:6:12", "-o", o]);
+    let r = eoir(&args);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    for f in [
+        "assess.json",
+        "assess.html",
+        "noise3d.csv",
+        "ranges.csv",
+        "ctf_sys.csv",
+        "mrtd.csv",
+        "probability.png",
+        "mrtd.png",
+        "mtf.png",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("assess.json")).unwrap()).unwrap();
+    let an = &j["analytic"];
+    let table = |key: &str| -> Vec<CtfSample> {
+        an[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| CtfSample {
+                freq_cy_per_mrad: r["freq_cy_per_mrad"].as_f64().unwrap(),
+                mtf: r["mtf"].as_f64().unwrap(),
+                ctf_eye: r["ctf_eye"].as_f64().unwrap(),
+                noise_factor: r["noise_factor"].as_f64().unwrap(),
+                ctf_sys: r["ctf_sys"].as_f64().unwrap_or(f64::INFINITY),
+            })
+            .collect()
+    };
+    let (h, v) = (table("ctf_sys_h"), table("ctf_sys_v"));
+    let size = an["target"]["size_m"].as_f64().unwrap();
+    let ranges = an["ranges_m"].as_array().unwrap();
+    for (k, r) in ranges.iter().enumerate() {
+        let r = r.as_f64().unwrap();
+        let c = an["contrast"][k].as_f64().unwrap();
+        let got = an["ttp_v"][k].as_f64().unwrap();
+        let v_simpson = size / r * 1e3 * (simpson(&h, c) * simpson(&v, c)).sqrt();
+        assert!(
+            (v_simpson - got).abs() <= 0.01 * got + 1e-9,
+            "{r}: {v_simpson} vs {got}"
+        );
+    }
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    assert!(stdout.contains("identification: P50 at"), "{stdout}");
+
+    for (flag, value, expect) in [
+        ("--range-km", "5:1:10", "STOP must exceed START"),
+        ("--range-km", "0:5:10", "must be > 0"),
+        ("--range-km", "1:5", "START:STOP:N"),
+        ("--target", "size_m=-2", "target.size_m"),
+        ("--target", "width=2", "unknown key `width`"),
+    ] {
+        let bad = dir.path().join("bad");
+        let mut args = base.to_vec();
+        args.extend([flag, value, "-o", bad.to_str().unwrap()]);
+        let r = eoir(&args);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(
+            !r.status.success() && err.contains(expect),
+            "{flag} {value}: {err}"
+        );
+        assert!(
+            err.contains(flag.trim_start_matches('-').split('-').next().unwrap()),
+            "{err}"
+        );
+        assert!(!bad.exists(), "{flag} {value} wrote output");
+    }
 }
