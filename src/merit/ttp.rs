@@ -238,7 +238,7 @@ pub fn ttp_value(
 
 /// Task probability `P = (V/V50)^E / (1 + (V/V50)^E)`, `E = 1.51 + 0.24·V/V50`.
 pub fn probability(v: f64, v50: f64) -> f64 {
-    if !(v > 0.0) {
+    if v.is_nan() || v <= 0.0 {
         return 0.0;
     }
     let r = v / v50;
