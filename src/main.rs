@@ -47,6 +47,8 @@ enum Command {
     /// Figures of merit of a sensor (3-D noise, NETD, MTF, MRTD, GIQE 5, TTP ranges),
     /// analytic and measured on simulated frames.
     Assess(cli::assess::AssessArgs),
+    /// Trade study: the analytic figures of merit over a grid of sensor parameters.
+    Sweep(cli::sweep::SweepArgs),
 }
 
 fn main() -> ExitCode {
@@ -68,6 +70,7 @@ fn main() -> ExitCode {
         Command::Nuc(args) => nuc::nuc(args),
         Command::Rts(args) => cli::rts::rts(args),
         Command::Assess(args) => cli::assess::assess(args),
+        Command::Sweep(args) => cli::sweep::sweep(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -14,6 +14,7 @@ pub mod rts;
 pub mod run;
 pub mod scene;
 pub mod sensors;
+pub mod sweep;
 pub mod temperature;
 
 /// Parses `H,V` (two numbers).

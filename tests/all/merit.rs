@@ -387,3 +387,82 @@ fn assess_cli_writes_products_whose_table_reproduces_v_and_refuses_bad_flags() {
         assert!(!bad.exists(), "{flag} {value} wrote output");
     }
 }
+
+/// `eoir sweep` over two keys: the grid in order, the identification range rising with
+/// focal length, and the same figures as `assess::analytic` at each point.
+#[test]
+fn sweep_cli_tabulates_the_grid_and_matches_assess() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("s");
+    let r = eoir(&[
+        "sweep",
+        "--sensor",
+        "multimir",
+        "--set",
+        "detector.rows=64",
+        "--set",
+        "detector.cols=64",
+        "--vary",
+        "optics.focal_length_m=0.1:0.2:3",
+        "--vary",
+        "detector.read_noise_e=600:6000:2",
+        "--range-km",
+        "0.1:20:80",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines.len(), 1 + 6);
+    let head: Vec<&str> = lines[0].split(',').collect();
+    let id = head
+        .iter()
+        .position(|h| *h == "identification_p50_m")
+        .unwrap();
+    let netd = head.iter().position(|h| *h == "netd_k").unwrap();
+    let row = |i: usize| -> Vec<f64> {
+        lines[1 + i]
+            .split(',')
+            .map(|v| v.parse().unwrap_or(f64::NAN))
+            .collect()
+    };
+    // Rows: (f, noise) = (0.1, 600), (0.1, 6000), (0.15, 600), …
+    assert_eq!((row(1)[0], row(1)[1]), (0.1, 6000.0));
+    assert!(row(2)[id] > row(0)[id] && row(4)[id] > row(2)[id]);
+    assert!(row(1)[netd] > row(0)[netd]);
+    // The first point equals the library's assessment of that sensor.
+    let s = sensor(
+        "multimir",
+        &[],
+        &["optics.focal_length_m=0.1", "detector.read_noise_e=600"],
+    );
+    let opts = AssessOptions {
+        analytic_only: true,
+        ranges_m: (0..80)
+            .map(|i| 100.0 + i as f64 * 19_900.0 / 79.0)
+            .collect(),
+        ..Default::default()
+    };
+    let a = assess::analytic(&s, &opts).unwrap();
+    let want = a.tasks[2].range_p50_m.unwrap();
+    assert!(
+        (row(0)[id] / want - 1.0).abs() < 1e-5,
+        "{} vs {want}",
+        row(0)[id]
+    );
+    assert!(out.join("identification_p50_m.png").is_file());
+    // A bad grid is an error naming the flag.
+    let r = eoir(&[
+        "sweep",
+        "--vary",
+        "optics.f_number=2:1:3",
+        "-o",
+        dir.path().join("bad").to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        !r.status.success() && err.contains("--vary optics.f_number"),
+        "{err}"
+    );
+}
