@@ -2,6 +2,7 @@
 
 use anyhow::{bail, Context, Result};
 
+pub mod assess;
 pub mod characterize;
 pub mod defects;
 pub mod edge_mtf;
@@ -13,6 +14,7 @@ pub mod rts;
 pub mod run;
 pub mod scene;
 pub mod sensors;
+pub mod sweep;
 pub mod temperature;
 
 /// Parses `H,V` (two numbers).

@@ -28,6 +28,7 @@ mod io_hdf5;
 mod io_npy;
 mod io_raster;
 mod los;
+mod merit;
 mod motion;
 mod moving_camera;
 mod nuc_cli;
