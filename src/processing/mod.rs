@@ -16,6 +16,7 @@
 //!   detector grid (FOI report eq. 3.6).
 //! - [`edge_mtf`]: ISO 12233 slanted-edge MTF measurement.
 //! - [`noise_estimate`]: the white-noise level of one image (Immerkær 1996).
+//! - [`registration`]: sub-pixel translation between frames by phase correlation.
 //!
 //! Frames stored as integers (`Array2<u16>` from an ADC) are converted with [`to_f64`].
 
@@ -25,6 +26,7 @@ pub mod netd;
 pub mod noise_estimate;
 pub mod nuc;
 pub mod photon_transfer;
+pub mod registration;
 pub mod temperature;
 pub mod wiener;
 
