@@ -17,6 +17,8 @@
 //! - [`edge_mtf`]: ISO 12233 slanted-edge MTF measurement.
 //! - [`noise_estimate`]: the white-noise level of one image (Immerkær 1996).
 //! - [`registration`]: sub-pixel translation between frames by phase correlation.
+//! - [`shift_and_add`]: registered frames accumulated on a finer grid, and its transfer
+//!   function.
 //!
 //! Frames stored as integers (`Array2<u16>` from an ADC) are converted with [`to_f64`].
 
@@ -27,6 +29,7 @@ pub mod noise_estimate;
 pub mod nuc;
 pub mod photon_transfer;
 pub mod registration;
+pub mod shift_and_add;
 pub mod temperature;
 pub mod wiener;
 
