@@ -51,6 +51,11 @@ pub struct FineImage {
     pub factor: usize,
     /// Number of cells filled from their neighbours.
     pub holes_filled: usize,
+    /// The mean over the cells holding at least 2 samples of the unbiased variance of
+    /// their samples about the cell mean, image units² (`None` when no cell holds 2): the
+    /// per-sample error of the fine image — temporal noise plus the spread of the image
+    /// across the cell that the positioning error samples, plus registration error.
+    pub sample_variance: Option<f64>,
 }
 
 impl FineImage {
@@ -130,6 +135,7 @@ pub fn shift_and_add(
     let (fr, fc) = (rows * factor, cols * factor);
     let rf = factor as f64;
     let mut sum = Array2::<f64>::zeros((fr, fc));
+    let mut sum_sq = Array2::<f64>::zeros((fr, fc));
     let mut samples = Array2::<u32>::zeros((fr, fc));
     for (k, &(dx, dy)) in shifts.iter().enumerate() {
         let frame = stack.index_axis(ndarray::Axis(0), k);
@@ -144,6 +150,7 @@ pub fn shift_and_add(
             }
             let (i, j) = (i as usize, j as usize);
             sum[[i, j]] += v;
+            sum_sq[[i, j]] += v * v;
             samples[[i, j]] += 1;
         }
     }
@@ -162,12 +169,23 @@ pub fn shift_and_add(
             f64::NAN
         }
     });
+    let (mut var_sum, mut var_cells) = (0.0, 0usize);
+    for ((i, j), n) in samples.indexed_iter() {
+        if *n >= 2 {
+            let n = *n as f64;
+            let mean = image[[i, j]];
+            var_sum += ((sum_sq[[i, j]] - n * mean * mean) / (n - 1.0)).max(0.0);
+            var_cells += 1;
+        }
+    }
+    let sample_variance = (var_cells > 0).then(|| var_sum / var_cells as f64);
     let holes_filled = fill_holes(&mut image);
     Ok(FineImage {
         image,
         samples,
         factor,
         holes_filled,
+        sample_variance,
     })
 }
 
@@ -292,6 +310,8 @@ mod tests {
         assert!(f.image.iter().all(|v| v.is_finite()));
         // A filled hole lies within the range of the samples.
         assert!(f.image.iter().all(|v| (0.0..=15.0).contains(v)));
+        // Identical frames: no scatter within a cell.
+        assert_eq!(f.sample_variance, Some(0.0));
         // Mean of 1/n: 15 cells with 2 samples, one with 1.
         assert!((f.mean_inverse_samples() - (15.0 * 0.5 + 1.0) / 16.0).abs() < 1e-12);
     }

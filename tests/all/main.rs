@@ -30,6 +30,7 @@ mod io_raster;
 mod los;
 mod motion;
 mod moving_camera;
+mod multi_frame;
 mod nuc_cli;
 mod optics;
 mod otf_table;
