@@ -10,6 +10,7 @@ pub mod mtf;
 pub mod nuc;
 pub mod progress;
 pub mod restore;
+pub mod restore_sequence;
 pub mod rts;
 pub mod run;
 pub mod scene;

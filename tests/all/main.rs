@@ -31,6 +31,7 @@ mod los;
 mod merit;
 mod motion;
 mod moving_camera;
+mod multi_frame;
 mod nuc_cli;
 mod optics;
 mod otf_table;
