@@ -1530,6 +1530,55 @@ fn simulate_acquisition_set(
     })
 }
 
+/// The figures of merit of a sensor (as `eoir assess`): `assess.json` as JSON. `target` is
+/// `(size_m, delta_t_k, contrast, sct_k or None, extinction_per_km or None)`; `ranges_m` the
+/// ranges of the range curves; `analytic_only` skips the simulated measurements.
+#[pyfunction]
+#[pyo3(signature = (sensor, seed=1, temperature_k=300.0, frames=32, window=64, target=None, ranges_m=None, elevation_deg=90.0, analytic_only=false))]
+#[allow(clippy::too_many_arguments)]
+fn assess(
+    py: Python<'_>,
+    sensor: &PySensor,
+    seed: u64,
+    temperature_k: f64,
+    frames: usize,
+    window: usize,
+    target: Option<(f64, f64, f64, Option<f64>, Option<f64>)>,
+    ranges_m: Option<Vec<f64>>,
+    elevation_deg: f64,
+    analytic_only: bool,
+) -> PyResult<String> {
+    use eoir::merit::assess::{AssessOptions, TargetSpec};
+    let defaults = AssessOptions::default();
+    let target = match target {
+        Some((size_m, delta_t_k, contrast, sct_k, extinction_per_km)) => TargetSpec {
+            size_m,
+            delta_t_k,
+            contrast,
+            sct_k: sct_k.unwrap_or(TargetSpec::default().sct_k),
+            extinction_per_km,
+        },
+        None => TargetSpec::default(),
+    };
+    let opts = AssessOptions {
+        seed,
+        temperature_k,
+        frames,
+        window_px: window,
+        target,
+        ranges_m: ranges_m.unwrap_or(defaults.ranges_m),
+        elevation_deg,
+        display: None,
+        analytic_only,
+    };
+    let sensor = sensor.inner.clone();
+    detached(py, move || {
+        opts.validate()?;
+        let a = eoir::merit::assess::assess(&sensor, &opts)?;
+        serde_json::to_string(&a).map_err(|e| eoir::Error::param("assessment", "json", e.to_string()))
+    })
+}
+
 /// Reads a single-plane image file: a 16-bit greyscale PNG or TIFF (DN, uint16) or a
 /// 32-bit float TIFF (float32), with the library's readers (as `eoir restore` reads them).
 #[pyfunction]
@@ -1675,6 +1724,7 @@ fn _eoir(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyNuc>()?;
     m.add_function(wrap_pyfunction!(restore, m)?)?;
     m.add_function(wrap_pyfunction!(restore_sequence, m)?)?;
+    m.add_function(wrap_pyfunction!(assess, m)?)?;
     m.add_function(wrap_pyfunction!(edge_mtf, m)?)?;
     m.add_function(wrap_pyfunction!(nuc_fit, m)?)?;
     m.add_function(wrap_pyfunction!(find_rts_pixels, m)?)?;
