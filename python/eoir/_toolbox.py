@@ -151,6 +151,10 @@ def restore_sequence(
     noise : {"auto", "model"}, default "auto"
         ``auto``: the scatter of the samples within the fine cells; ``model``: the
         sensor's temporal noise. ``nsr`` gives a constant instead.
+    nsr : float, optional
+        A constant noise-to-signal power ratio instead of ``noise``.
+    black_level : float, optional
+        The DN of zero signal (default: the sensor model's dark level).
 
     Returns
     -------
@@ -435,8 +439,10 @@ def assess(sensor: Sensor, *, seed: int = 1, temperature_k: float = 300.0, frame
         Seed of the simulated frames.
     temperature_k : float, default 300
         Blackbody temperature of the noise measurements.
-    frames, window : int
-        Frames and square window (pixels) of the simulated 3-D noise sequence.
+    frames : int, default 32
+        Frames of the simulated 3-D noise sequence.
+    window : int, default 64
+        Side of the square detector window (pixels) the measurements simulate.
     target : dict, optional
         ``size_m`` (2.3), ``delta_t_k`` (2.0), ``contrast`` (0.3), ``sct_k``,
         ``extinction_per_km`` (default: the sensor's atmosphere); unknown keys raise.
