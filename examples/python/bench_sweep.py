@@ -5,9 +5,12 @@ speed-up, and checks the two tables are identical.
     python examples/python/bench_sweep.py [POINTS] [REPEAT]
 
 The grid varies MultimIR's integration time over POINTS values; every point simulates and
-measures (analytic_only=False), so each task costs what a real trade study's does.
+measures (analytic_only=False), so each task costs what a real trade study's does. Every
+worker process runs the engine on one thread (RAYON_NUM_THREADS=1, set before the workers
+start), so one worker uses one core, as a worker per core of a cluster does.
 """
 
+import os
 import statistics
 import sys
 import time
@@ -19,6 +22,7 @@ import eoir.dask
 
 
 def main():
+    os.environ["RAYON_NUM_THREADS"] = "1"
     points = int(sys.argv[1]) if len(sys.argv) > 1 else 16
     repeat = int(sys.argv[2]) if len(sys.argv) > 2 else 3
     vary = {"detector.integration_time_s": (0.5e-3, 2.6e-3, points)}
