@@ -672,8 +672,14 @@ fn run<'py>(
                 rows.iter().map(f).collect()
             };
             t.set_item("frame", rows.iter().map(|r| r.frame).collect::<Vec<u64>>())?;
-            t.set_item("row_first", rows.iter().map(|r| r.rows.0).collect::<Vec<usize>>())?;
-            t.set_item("row_last", rows.iter().map(|r| r.rows.1).collect::<Vec<usize>>())?;
+            t.set_item(
+                "row_first",
+                rows.iter().map(|r| r.rows.0).collect::<Vec<usize>>(),
+            )?;
+            t.set_item(
+                "row_last",
+                rows.iter().map(|r| r.rows.1).collect::<Vec<usize>>(),
+            )?;
             t.set_item("t_start_s", col(&|r| r.window_s.0))?;
             t.set_item("t_end_s", col(&|r| r.window_s.1))?;
             t.set_item("dx_px", col(&|r| r.displacement_px[0]))?;
@@ -684,7 +690,10 @@ fn run<'py>(
         None => None,
     };
     d.set_item("line_of_sight", los)?;
-    d.set_item("focal_plane", focal_plane_dict(py, out.focal_plane.as_ref())?)?;
+    d.set_item(
+        "focal_plane",
+        focal_plane_dict(py, out.focal_plane.as_ref())?,
+    )?;
     Ok(d)
 }
 
@@ -702,18 +711,28 @@ fn focal_plane_dict<'py>(
     let n = t.frames.len();
     let px = t.rts_pixels.len();
     if t.frames.iter().all(|f| f.rts.is_some()) && n > 0 {
-        d.set_item("rts_row", t.rts_pixels.iter().map(|p| p / t.cols).collect::<Vec<_>>())?;
-        d.set_item("rts_col", t.rts_pixels.iter().map(|p| p % t.cols).collect::<Vec<_>>())?;
+        d.set_item(
+            "rts_row",
+            t.rts_pixels.iter().map(|p| p / t.cols).collect::<Vec<_>>(),
+        )?;
+        d.set_item(
+            "rts_col",
+            t.rts_pixels.iter().map(|p| p % t.cols).collect::<Vec<_>>(),
+        )?;
         let frac = Array2::from_shape_fn((n, px), |(k, i)| {
             t.frames[k].rts.as_ref().map_or(0.0, |r| r.high_fraction[i])
         });
         let high = Array2::from_shape_fn((n, px), |(k, i)| {
-            t.frames[k].rts.as_ref().is_some_and(|r| r.high_at_readout[i])
+            t.frames[k]
+                .rts
+                .as_ref()
+                .is_some_and(|r| r.high_at_readout[i])
         });
         d.set_item("rts_high_fraction", frac.into_pyarray(py))?;
         d.set_item("rts_high_at_readout", high.into_pyarray(py))?;
     }
-    let trapped: Option<Vec<&Array2<f32>>> = t.frames.iter().map(|f| f.trapped_e.as_ref()).collect();
+    let trapped: Option<Vec<&Array2<f32>>> =
+        t.frames.iter().map(|f| f.trapped_e.as_ref()).collect();
     if let Some(p) = trapped.filter(|p| !p.is_empty()) {
         d.set_item("trapped_e", stack(&p).into_pyarray(py))?;
     }
@@ -1575,7 +1594,8 @@ fn assess(
     detached(py, move || {
         opts.validate()?;
         let a = eoir::merit::assess::assess(&sensor, &opts)?;
-        serde_json::to_string(&a).map_err(|e| eoir::Error::param("assessment", "json", e.to_string()))
+        serde_json::to_string(&a)
+            .map_err(|e| eoir::Error::param("assessment", "json", e.to_string()))
     })
 }
 
