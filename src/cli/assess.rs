@@ -9,7 +9,7 @@ use anyhow::{bail, Context, Result};
 use eoir::merit::assess::{self, AssessOptions, Assessment, TargetSpec};
 use eoir::plot::{self, LinePlot, Marker, Series};
 
-use super::run::SensorArgs;
+use super::sensor_args::SensorArgs;
 
 /// Arguments of `eoir assess`.
 #[derive(Debug, clap::Args)]

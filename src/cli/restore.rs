@@ -14,7 +14,7 @@ use eoir::processing::wiener::{
     self, replace_invalid_pixels, NoiseRule, SensorTransfer, IMPULSE_K_SIGMA,
 };
 
-use super::run::SensorArgs;
+use super::sensor_args::SensorArgs;
 
 /// What the pixel values of an input image are.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
