@@ -1690,19 +1690,7 @@ fn restore_sequence<'py>(
             return Err(eoir::Error::param("black_level", black, "a finite DN >= 0"));
         }
         let signal = stack.mapv(|v| v - black);
-        let rule = match (nsr, noise.as_str()) {
-            (Some(x), _) => SequenceNoise::Constant(x),
-            (None, "model") => {
-                let finite: Vec<f64> = signal.iter().copied().filter(|v| v.is_finite()).collect();
-                let mean = finite.iter().sum::<f64>() / finite.len().max(1) as f64;
-                let mean_e = (mean / model.gain_dn_per_e()).max(0.0);
-                SequenceNoise::Model {
-                    frame_variance: model.temporal_noise_dn(mean_e).powi(2)
-                        + model.quantisation_noise_dn().powi(2),
-                }
-            }
-            (None, _) => SequenceNoise::Scatter,
-        };
+        let rule = SequenceNoise::from_rule(nsr, &noise, signal.view(), model)?;
         let transfer = SensorTransfer::new(sensor)?;
         let r = restore_stack(signal.view(), shifts.as_deref(), upsample, &transfer, rule)?;
         let restored = r.restoration.image.mapv(|v| (v + black) as f32);
@@ -1714,7 +1702,7 @@ fn restore_sequence<'py>(
             "shifts_px": r.shifts.iter().map(|t| [t.dx_px, t.dy_px]).collect::<Vec<_>>(),
             "black_level_dn": black,
             "holes_filled": r.fine.holes_filled,
-            "noise_rule": match rule { SequenceNoise::Scatter => "scatter", SequenceNoise::Model { .. } => "model", SequenceNoise::Constant(_) => "constant" },
+            "noise_rule": rule.name(),
             "fine_noise_variance_dn2": r.fine_noise_variance,
             "sample_variance_dn2": r.fine.sample_variance,
             "nsr_median": r.restoration.nsr_median,

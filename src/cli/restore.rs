@@ -167,6 +167,34 @@ fn display_stretch(a: &Array2<f64>) -> ndarray::Array2<u8> {
     a.mapv(|v| stretch.to_u8(v))
 }
 
+/// Writes a restoration's products into `output` as one set (all or none):
+/// `restored.tiff` (f32; `too_large` says why a value beyond f32 cannot be stored),
+/// `restored.png` (the DN display stretch) and `restore.json`; returns the paths written.
+pub fn write_restored(
+    output: &Path,
+    restored: &Array2<f64>,
+    report: &serde_json::Value,
+    too_large: &str,
+) -> Result<Vec<PathBuf>> {
+    let stored = restored.mapv(|v| v as f32);
+    let set = ProductSet::begin(output)?;
+    eoir::io::output::check_finite(
+        &set.final_path(&set.path("restored.tiff")),
+        stored.iter().map(|&v| v as f64),
+        &format!("restored.tiff stores 32-bit floats (|value| <= 3.4e38): {too_large}"),
+    )?;
+    set.write("restored.tiff", |p| {
+        raster::write_tiff_f32(p, stored.view())
+    })?;
+    let grey = display_stretch(restored);
+    let samples: Vec<u8> = grey.iter().copied().collect();
+    let (rows, cols) = restored.dim();
+    let bytes = display::encode_png(cols, rows, 1, &samples)?;
+    set.write("restored.png", |p| display::write_png_bytes(p, &bytes))?;
+    set.write_json("restore.json", report)?;
+    Ok(set.commit()?)
+}
+
 /// `eoir restore`.
 pub fn restore(args: RestoreArgs) -> Result<()> {
     if super::restore_sequence::is_sequence(&args.input) {
@@ -264,22 +292,12 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
     });
     // Everything is computed: only now touch the output directory, all three products
     // as one set (the old set stays whole until the new one is complete).
-    let stored = restored.mapv(|v| v as f32);
-    let set = ProductSet::begin(&args.output)?;
-    eoir::io::output::check_finite(
-        &set.final_path(&set.path("restored.tiff")),
-        stored.iter().map(|&v| v as f64),
-        "restored.tiff stores 32-bit floats (|value| <= 3.4e38): the input holds values too large for the restoration to be stored",
+    let written = write_restored(
+        &args.output,
+        &restored,
+        &report,
+        "the input holds values too large for the restoration to be stored",
     )?;
-    set.write("restored.tiff", |p| {
-        raster::write_tiff_f32(p, stored.view())
-    })?;
-    let grey = display_stretch(&restored);
-    let samples: Vec<u8> = grey.iter().copied().collect();
-    let bytes = display::encode_png(cols, rows, 1, &samples)?;
-    set.write("restored.png", |p| display::write_png_bytes(p, &bytes))?;
-    set.write_json("restore.json", &report)?;
-    let written = set.commit()?;
     println!(
         "{}: Wiener ({}{}), MTF at Nyquist {:.3} (x) {:.3} (y), {} pixels replaced",
         sensor.name,

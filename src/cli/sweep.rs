@@ -13,19 +13,14 @@ use eoir::plot::{self, LinePlot, Series};
 use eoir::sensor::{presets, Sensor};
 
 use super::assess::{parse_grid, parse_target};
+use super::sensor_args::SensorArgs;
 
 /// Arguments of `eoir sweep`.
 #[derive(Debug, clap::Args)]
 pub struct SweepArgs {
-    /// Sensor: a TOML file or a preset name.
-    #[arg(long, default_value = "multimir")]
-    pub sensor: String,
-    /// Preset option (repeatable).
-    #[arg(long = "option", value_name = "NAME=VALUE")]
-    pub option: Vec<String>,
-    /// Fixed sensor field override (repeatable).
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    pub set: Vec<String>,
+    /// The sensor and its fixed options and overrides.
+    #[command(flatten)]
+    pub sensor: SensorArgs,
     /// A varied sensor field, `KEY=START:STOP:N` (repeatable; the grid is their product).
     #[arg(long = "vary", value_name = "KEY=START:STOP:N", required = true)]
     pub vary: Vec<String>,
@@ -164,7 +159,15 @@ pub fn sweep(args: SweepArgs) -> Result<()> {
     let rows: Vec<Vec<f64>> = points
         .par_iter()
         .map(|p| {
-            figures_at(&args.sensor, &args.option, &args.set, &axes, p, &opts).with_context(|| {
+            figures_at(
+                &args.sensor.sensor,
+                &args.sensor.option,
+                &args.sensor.set,
+                &axes,
+                p,
+                &opts,
+            )
+            .with_context(|| {
                 let at: Vec<String> = axes
                     .iter()
                     .zip(p)
