@@ -213,7 +213,12 @@ def _sweep_point(sensor, options, overrides, point, assess_kwargs):
     ov = dict(overrides)
     ov.update(point)
     s = eoir.load_sensor(sensor, options, ov)
-    a = eoir.assess(s, **assess_kwargs)
+    try:
+        a = eoir.assess(s, **assess_kwargs)
+    except ValueError as e:
+        # A valid sensor without figures at this point (e.g. its reference saturates): a
+        # NaN row with a note, as `eoir sweep` does, not the end of the trade study.
+        return {"_note": str(e)}
     an = a["analytic"]
     out = {
         "netd_k": an.get("netd_k"),
@@ -277,7 +282,9 @@ def sweep(
     Returns an ``xarray.Dataset`` with one dimension per varied key (in the order given)
     and one variable per figure (``netd_k``, ``mtf50_cy_per_px``, ``mtf_nyquist``, ``rer``,
     ``<task>_p50_m``, ``<task>_p80_m``; NaN where a figure does not apply); written to the
-    Zarr store ``store`` too when given.
+    Zarr store ``store`` too when given. A point whose sensor is valid but has no figures
+    (e.g. its reference level saturates) is NaN throughout and explained in the attribute
+    ``notes`` (one string per such point); if no point has figures, ``ValueError``.
     """
     import itertools
 
@@ -306,14 +313,21 @@ def sweep(
     else:
         rest = list(dask.compute(*tasks))
     results = [first] + rest
+    notes = [
+        ", ".join(f"{k}={v}" for k, v in p.items()) + ": " + r["_note"]
+        for p, r in zip(points, results) if "_note" in r
+    ]
+    if len(notes) == len(points):
+        raise ValueError(f"no sweep point has figures of merit; the first: {notes[0]}")
     shape = tuple(len(a) for a in axes)
-    names = list(first)
+    names = next(list(r) for r in results if "_note" not in r)
     data = {
         n: (keys, np.array([r.get(n, np.nan) for r in results], dtype=float).reshape(shape))
         for n in names
     }
     ds = xr.Dataset(data, coords={k: a for k, a in zip(keys, axes)},
-                    attrs={"sensor": str(sensor), "analytic_only": int(bool(analytic_only))})
+                    attrs={"sensor": str(sensor), "analytic_only": int(bool(analytic_only)),
+                           "notes": notes})
     if store is not None:
         ds.to_zarr(os.fspath(store), mode="w")
     return ds

@@ -544,7 +544,7 @@ mod num_zero {
 #[pyo3(signature = (sensor, radiance, wavelength_um, fov_deg, seed=1, frames=1,
     calibrate=true, nuc_degree=1, first_frame=0, range_m=None, units="W m-2 sr-1 um-1",
     fwhm_um=None, input_name="numpy array", calibration_temperatures_k=None,
-    sequence_frames=None))]
+    sequence_frames=None, assess=false))]
 #[allow(clippy::too_many_arguments)]
 fn run<'py>(
     py: Python<'py>,
@@ -563,6 +563,7 @@ fn run<'py>(
     input_name: &str,
     calibration_temperatures_k: Option<Vec<f64>>,
     sequence_frames: Option<u64>,
+    assess: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let scale = parse_scale(units)?;
     let units = scale.units;
@@ -632,7 +633,11 @@ fn run<'py>(
             source,
             to_eoir: scale.to_eoir,
         };
-        pipeline::run(sensor, &mut reader, &options, |_, _| {})
+        let mut out = pipeline::run(sensor, &mut reader, &options, |_, _| {})?;
+        if assess {
+            eoir::merit::run_report::attach(&mut out, &Default::default())?;
+        }
+        Ok(out)
     })?;
     let d = PyDict::new(py);
     let f = &out.frames;

@@ -56,3 +56,18 @@ def test_sweep_on_a_two_worker_cluster_equals_sequential(tmp_path):
         np.testing.assert_array_equal(seq[name].values, par[name].values)
     with pytest.raises(ValueError, match="vary"):
         edask.sweep("multimir", {"detector.integration_time_s": (1e-3, 2e-3, 0)})
+    # A saturating point is a NaN row with a note; the others keep their figures.
+    sat = edask.sweep("multimir", {"detector.integration_time_s": [1e-3, 0.04]})
+    assert np.isfinite(sat["netd_k"].values[0]) and np.isnan(sat["netd_k"].values[1])
+    assert len(sat.attrs["notes"]) == 1 and "saturated" in sat.attrs["notes"][0]
+    with pytest.raises(ValueError, match="no sweep point"):
+        edask.sweep("multimir", {"detector.integration_time_s": [0.04]})
+
+
+def test_run_with_assess_reports_the_analytic_figures(small_sensor, small_scene):
+    ds = eoir.run(small_sensor, small_scene, assess=True)
+    fom = ds.attrs["report"]["figures_of_merit"]
+    an = eoir.assess(small_sensor, analytic_only=True)["analytic"]
+    assert fom["netd_k"] == an["netd_k"]
+    assert [t["range_p50_m"] for t in fom["tasks"]] == [t["range_p50_m"] for t in an["tasks"]]
+    assert "figures_of_merit" not in eoir.run(small_sensor, small_scene).attrs["report"]

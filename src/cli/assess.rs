@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Context, Result};
 
 use eoir::merit::assess::{self, AssessOptions, Assessment, TargetSpec};
+use eoir::merit::plots;
 use eoir::plot::{self, LinePlot, Marker, Series};
 
 use super::sensor_args::SensorArgs;
@@ -102,8 +103,14 @@ pub fn parse_grid(text: &str, flag: &str) -> Result<Vec<f64>> {
         bail!("{flag} `{text}`: STOP must exceed START");
     }
     Ok((0..n)
-        .map(|i| a + (b - a) * i as f64 / (n - 1) as f64)
+        .map(|i| decimal(a + (b - a) * i as f64 / (n - 1) as f64))
         .collect())
+}
+
+/// `v` rounded to 12 significant digits: a grid step's rounding error dropped, so
+/// `0.05:0.25:5` gives 0.15 (printed as `0.15`), not 0.15000000000000002.
+fn decimal(v: f64) -> f64 {
+    format!("{v:.11e}").parse().unwrap_or(v)
 }
 
 /// `eoir assess`.
@@ -205,41 +212,8 @@ pub fn write_products(set: &eoir::io::output::ProductSet, a: &Assessment) -> Res
     set.write_bytes("ctf_sys.csv", csv.as_bytes())?;
 
     // Plots.
-    let ranges_km: Vec<f64> = an.ranges_m.iter().map(|r| r * 1e-3).collect();
-    let labels: Vec<String> = an
-        .tasks
-        .iter()
-        .map(|t| format!("{} (V50 {:.1})", t.task, t.v50))
-        .collect();
-    let series: Vec<Series> = an
-        .tasks
-        .iter()
-        .zip(&labels)
-        .map(|(t, l)| Series {
-            label: l,
-            x: &ranges_km,
-            y: &t.probability,
-        })
-        .collect();
-    let title = format!("TTP task probability, {} m target", an.target.size_m);
-    set.write("probability.png", |p| {
-        plot::write_line_plot(
-            p,
-            &LinePlot {
-                title: &title,
-                x_label: "range (km)",
-                y_label: "probability",
-                series,
-                markers: vec![],
-                y_range: Some((0.0, 1.0)),
-                size_px: (900, 600),
-            },
-        )
-    })?;
+    set.write_bytes("probability.png", &plots::probability_png(an)?)?;
     if let Some(mrtd) = &an.mrtd {
-        let pts: Vec<_> = mrtd.iter().filter(|p| p.mrtd_k.is_finite()).collect();
-        let f: Vec<f64> = pts.iter().map(|p| p.freq_cy_per_px).collect();
-        let m: Vec<f64> = pts.iter().map(|p| p.mrtd_k).collect();
         let mut csv = String::from("freq_cy_per_px,freq_cy_per_mrad,mtf,mrtd_k\n");
         for p in mrtd {
             let _ = writeln!(
@@ -252,53 +226,12 @@ pub fn write_products(set: &eoir::io::output::ProductSet, a: &Assessment) -> Res
             );
         }
         set.write_bytes("mrtd.csv", csv.as_bytes())?;
-        set.write("mrtd.png", |p| {
-            plot::write_line_plot(
-                p,
-                &LinePlot {
-                    title: "MRTD (FLIR92 form)",
-                    x_label: "bar frequency (cycles/pixel)",
-                    y_label: "MRTD (K)",
-                    series: vec![Series {
-                        label: "analytic",
-                        x: &f,
-                        y: &m,
-                    }],
-                    markers: vec![Marker {
-                        label: "Nyquist",
-                        x: 0.5,
-                    }],
-                    y_range: Some((
-                        0.0,
-                        m.iter()
-                            .copied()
-                            .fold(0.0, f64::max)
-                            .min(20.0 * m[0].max(1e-9)),
-                    )),
-                    size_px: (900, 600),
-                },
-            )
-        })?;
     }
-    if let Some(n) = &an.niirs {
-        set.write("niirs.png", |p| {
-            plot::write_line_plot(
-                p,
-                &LinePlot {
-                    title: "GIQE 5 NIIRS",
-                    x_label: "range (km)",
-                    y_label: "NIIRS",
-                    series: vec![Series {
-                        label: "analytic",
-                        x: &ranges_km,
-                        y: n,
-                    }],
-                    markers: vec![],
-                    y_range: None,
-                    size_px: (900, 600),
-                },
-            )
-        })?;
+    if let Some(png) = plots::mrtd_png(an)? {
+        set.write_bytes("mrtd.png", &png)?;
+    }
+    if let Some(png) = plots::niirs_png(an)? {
+        set.write_bytes("niirs.png", &png)?;
     }
     if let Some((f, m)) = me.and_then(|m| m.edge_mtf.as_ref()) {
         let analytic: Vec<f64> = f

@@ -64,9 +64,26 @@ pub struct RunArgs {
     /// truncated by another process during the run then stops eoir with `SIGBUS`.
     #[arg(long)]
     no_mmap: bool,
+    /// Add the sensor's analytic figures of merit (NETD, MTF50, RER, MRTD, GIQE 5 NIIRS,
+    /// TTP detection/recognition/identification ranges for the default target) to
+    /// report.json and report.html, with their curves; `eoir assess` has the other
+    /// targets and the measured figures.
+    #[arg(long)]
+    assess: bool,
     /// No progress bar or summary.
     #[arg(long)]
     quiet: bool,
+}
+
+/// How [`run_file`] behaves around the pipeline.
+#[derive(Debug, Clone, Copy, Default)]
+struct FileRun {
+    /// No progress bar or summary.
+    quiet: bool,
+    /// Fail when no temperature product can be made.
+    require_temperature: bool,
+    /// Add the analytic figures of merit to the report (`--assess`).
+    assess: bool,
 }
 
 /// Arguments of `eoir demo`.
@@ -102,9 +119,13 @@ fn run_file(
     output: &Path,
     mut options: RunOptions,
     read: &eoir::io::ReadOptions,
-    quiet: bool,
-    require_temperature: bool,
+    how: FileRun,
 ) -> Result<pipeline::RunOutput> {
+    let FileRun {
+        quiet,
+        require_temperature,
+        assess,
+    } = how;
     if require_temperature && !sensor.is_thermal() {
         bail!(
             "--require-temperature: sensor `{}` does not respond beyond 3 µm, so it has no apparent-temperature products",
@@ -131,9 +152,12 @@ fn run_file(
     if options.input_name == RunOptions::default().input_name {
         options.input_name = input.display().to_string();
     }
-    let out = pipeline::run(sensor, reader.as_mut(), &options, |done, total| {
+    let mut out = pipeline::run(sensor, reader.as_mut(), &options, |done, total| {
         progress.imaging(done, total)
     })?;
+    if assess {
+        eoir::merit::run_report::attach(&mut out, &Default::default())?;
+    }
     let no_temperature = pipeline::calibrate::missing_temperature(sensor, &out);
     if let (true, Some(reason)) = (require_temperature, &no_temperature) {
         bail!("--require-temperature: {reason}");
@@ -244,8 +268,11 @@ pub fn run(args: RunArgs) -> Result<()> {
             set.staging_dir(),
             options,
             &read,
-            args.quiet,
-            args.require_temperature,
+            FileRun {
+                quiet: args.quiet,
+                require_temperature: args.require_temperature,
+                assess: args.assess,
+            },
         )
         .map_err(|e| name_final(&set, e))?;
         print_written(&set.commit()?, args.quiet);
@@ -304,8 +331,11 @@ pub fn run(args: RunArgs) -> Result<()> {
             &set.staging_dir().join(format!("channel-{ch}")),
             options.clone(),
             &read,
-            args.quiet,
-            args.require_temperature,
+            FileRun {
+                quiet: args.quiet,
+                require_temperature: args.require_temperature,
+                assess: args.assess,
+            },
         )
         .map_err(|e| name_final(&set, e))?;
         if shared_gain.is_none() {
@@ -393,8 +423,11 @@ pub fn demo(args: DemoArgs) -> Result<()> {
             ..Default::default()
         },
         &eoir::io::ReadOptions::default(),
-        args.quiet,
-        args.require_temperature,
+        FileRun {
+            quiet: args.quiet,
+            require_temperature: args.require_temperature,
+            assess: false,
+        },
     )?;
     print_written(&set.commit()?, args.quiet);
     Ok(())

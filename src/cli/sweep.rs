@@ -105,7 +105,10 @@ pub const FIGURES: [&str; 10] = [
     "identification_p80_m",
 ];
 
-/// The analytic figures at one grid point ([`FIGURES`] order; NaN where absent).
+/// The analytic figures at one grid point ([`FIGURES`] order; NaN where absent), and a
+/// note when the point's sensor is valid but has no figures (e.g. its reference level
+/// saturates): such a point is a NaN row of the trade study, not the end of it. A sensor
+/// the point's values make invalid (e.g. F-number ≤ 0) is an error.
 pub fn figures_at(
     sensor: &str,
     options: &[String],
@@ -113,14 +116,17 @@ pub fn figures_at(
     axes: &[Axis],
     point: &[f64],
     opts: &AssessOptions,
-) -> Result<Vec<f64>> {
+) -> Result<(Vec<f64>, Option<String>)> {
     let mut all = sets.to_vec();
     for (a, v) in axes.iter().zip(point) {
         all.push(format!("{}={v}", a.key));
     }
     let config = presets::load(sensor, options, &all)?;
     let s = Sensor::build(&config)?;
-    let an = assess::analytic(&s, opts)?;
+    let an = match assess::analytic(&s, opts) {
+        Ok(an) => an,
+        Err(e) => return Ok((vec![f64::NAN; FIGURES.len()], Some(e.to_string()))),
+    };
     let mut row = vec![
         an.netd_k.unwrap_or(f64::NAN),
         an.mtf50_cy_per_px.unwrap_or(f64::NAN),
@@ -131,7 +137,7 @@ pub fn figures_at(
         row.push(t.range_p50_m.unwrap_or(f64::NAN));
         row.push(t.range_p80_m.unwrap_or(f64::NAN));
     }
-    Ok(row)
+    Ok((row, None))
 }
 
 /// `eoir sweep`.
@@ -155,8 +161,9 @@ pub fn sweep(args: SweepArgs) -> Result<()> {
         analytic_only: true,
         ..Default::default()
     };
+    opts.validate().context("--target/--range-km")?;
     let points = grid(&axes)?;
-    let rows: Vec<Vec<f64>> = points
+    let results: Vec<(Vec<f64>, Option<String>)> = points
         .par_iter()
         .map(|p| {
             figures_at(
@@ -177,14 +184,37 @@ pub fn sweep(args: SweepArgs) -> Result<()> {
             })
         })
         .collect::<Result<_>>()?;
+    let failed: Vec<(&Vec<f64>, &String)> = points
+        .iter()
+        .zip(&results)
+        .filter_map(|(p, (_, note))| note.as_ref().map(|n| (p, n)))
+        .collect();
+    if failed.len() == points.len() {
+        bail!(
+            "no sweep point has figures of merit; the first: {}",
+            failed[0].1
+        );
+    }
+    for (p, note) in &failed {
+        let at: Vec<String> = axes
+            .iter()
+            .zip(p.iter())
+            .map(|(a, v)| format!("{}={v}", a.key))
+            .collect();
+        eprintln!(
+            "warning: sweep point {}: {note} (its row is empty)",
+            at.join(", ")
+        );
+    }
+    let rows: Vec<&Vec<f64>> = results.iter().map(|(r, _)| r).collect();
 
     let mut csv = String::new();
     for a in &axes {
         let _ = write!(csv, "{},", a.key);
     }
     csv.push_str(&FIGURES.join(","));
-    csv.push('\n');
-    for (p, r) in points.iter().zip(&rows) {
+    csv.push_str(",note\n");
+    for (p, (r, note)) in points.iter().zip(&results) {
         for v in p {
             let _ = write!(csv, "{v},");
         }
@@ -199,6 +229,11 @@ pub fn sweep(args: SweepArgs) -> Result<()> {
             })
             .collect();
         csv.push_str(&cells.join(","));
+        csv.push(',');
+        if let Some(n) = note {
+            // One CSV field: quoted, inner quotes doubled, on one line.
+            let _ = write!(csv, "\"{}\"", n.replace('"', "\"\"").replace('\n', " "));
+        }
         csv.push('\n');
     }
     let set = eoir::io::output::ProductSet::begin(&args.output)?;

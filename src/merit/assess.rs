@@ -318,7 +318,15 @@ pub fn frame_rate_hz(sensor: &Sensor) -> f64 {
 
 /// Signal electrons of the reference scene (see [`Analytic::signal_e`]) times `scale`
 /// (a reflectance for the reflective scene).
+///
+/// A colour-filter-array sensor's pixel sees one dye: the signal is the mosaic's mean over
+/// its channels (a Bayer quad: ¼ red, ½ green, ¼ blue). Shot-noise variance is linear in
+/// the signal, so the mean pixel's temporal noise is the mosaic's mean noise power.
 fn scene_electrons(sensor: &Sensor, thermal: bool, t_k: f64, reflectance: f64) -> Result<f64> {
+    if let [r, g, b] = sensor.cfa_channels() {
+        let e = |s: &Sensor| scene_electrons(s, thermal, t_k, reflectance);
+        return Ok(0.25 * e(r)? + 0.5 * e(g)? + 0.25 * e(b)?);
+    }
     if thermal {
         sensor.camera().electrons_blackbody(t_k, sensor.response())
     } else {

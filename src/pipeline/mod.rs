@@ -135,6 +135,9 @@ pub struct RunOutput {
     /// The focal plane's truth (RTS states, trapped charge, drift per frame); `None`
     /// without a focal-plane memory (docs/focal-plane.md).
     pub focal_plane: Option<FocalPlaneTruth>,
+    /// Sections a caller adds to `report.html` after the run (e.g. the figures of merit,
+    /// `eoir run --assess`); empty from [`run`].
+    pub extra_sections: Vec<report_html::ExtraSection>,
 }
 
 /// A false-colour composite of runs of the channels of one camera (3-CCD, three-band): the
@@ -353,6 +356,7 @@ pub fn run(
         warnings,
         line_of_sight: truth,
         focal_plane,
+        extra_sections: Vec::new(),
     })
 }
 

@@ -40,6 +40,22 @@ pub struct Picture {
     pub caption: String,
 }
 
+/// A section a caller adds to the page after the run ([`super::RunOutput::extra_sections`]):
+/// a table of labelled values, notes, and pictures (written beside `report.html` too).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExtraSection {
+    /// HTML id of the section, e.g. `figures-of-merit`.
+    pub id: &'static str,
+    /// Heading.
+    pub title: String,
+    /// Table rows: label and value, as text (escaped when written).
+    pub rows: Vec<(String, String)>,
+    /// Notes below the table (escaped when written).
+    pub notes: Vec<String>,
+    /// Pictures shown after the table.
+    pub pictures: Vec<Picture>,
+}
+
 /// The pictures of the first frame of a run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunPictures {
@@ -460,6 +476,9 @@ pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
     section_calibration(&mut h, &facts);
     h.push_str("</div>\n");
     section_pictures(&mut h, pictures);
+    for extra in &out.extra_sections {
+        section_extra(&mut h, extra);
+    }
     section_footer(&mut h, &facts);
     Ok(h)
 }
@@ -788,10 +807,35 @@ fn section_calibration(h: &mut String, facts: &Facts) {
     h.push_str("</table></section>\n");
 }
 
+/// A caller's section: its table and notes, then its pictures.
+fn section_extra(h: &mut String, s: &ExtraSection) {
+    let _ = writeln!(
+        h,
+        "<section id=\"{}\"><h2>{}</h2><table>",
+        s.id,
+        escape_html(&s.title)
+    );
+    for (label, value) in &s.rows {
+        row(h, label, &escape_html(value), None);
+    }
+    h.push_str("</table>\n");
+    for n in &s.notes {
+        let _ = writeln!(h, "<p>{}</p>", escape_html(n));
+    }
+    h.push_str("</section>\n");
+    figures(h, s.pictures.iter());
+}
+
 /// The pictures, each a `<figure>` with its caption; a small `dn.png` enlarged by a whole
 /// factor with square pixels.
 fn section_pictures(h: &mut String, pictures: &RunPictures) {
-    for p in pictures.all() {
+    figures(h, pictures.all().into_iter());
+}
+
+/// Each picture as a `<figure>` with its caption (`dn.png` enlarged, see
+/// [`section_pictures`]).
+fn figures<'a>(h: &mut String, pictures: impl Iterator<Item = &'a Picture>) {
+    for p in pictures {
         let (w, ht) = png_size(&p.png).unwrap_or((0, 0));
         let (scale, class) = if p.file_name == "dn.png" {
             (dn_display_scale(w), " class=\"pixels\"")
@@ -829,6 +873,11 @@ fn section_footer(h: &mut String, facts: &Facts) {
 pub fn write(out: &RunOutput, dir: &Path) -> Result<Vec<PathBuf>> {
     let pictures = RunPictures::render(out)?;
     let mut written = pictures.write(dir)?;
+    for p in out.extra_sections.iter().flat_map(|s| &s.pictures) {
+        let path = dir.join(p.file_name);
+        display::write_png_bytes(&path, &p.png)?;
+        written.push(path);
+    }
     let page = render_page(out, &pictures)?;
     let p = dir.join("report.html");
     crate::io::atomic_write(&p, |w| crate::io::write_all(w, page.as_bytes(), &p))?;
