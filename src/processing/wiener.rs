@@ -105,7 +105,12 @@ impl SensorTransfer {
     /// temperature is 300 K for a sensor whose response-weighted mean wavelength lies
     /// beyond 3 µm (a thermal scene) and 5772 K (sunlight) otherwise.
     pub fn new(sensor: &Sensor) -> Result<Self> {
-        let otf = sensor.otf().clone();
+        Self::with_otf(sensor, sensor.otf().clone())
+    }
+
+    /// As [`SensorTransfer::new`] with the transfer-function cascade `otf` in place of the
+    /// sensor's own (e.g. [`crate::sensor::otf::SystemOtf::over_range`]).
+    pub fn with_otf(sensor: &Sensor, otf: crate::sensor::otf::SystemOtf) -> Result<Self> {
         let response = sensor.response();
         let (lo, hi) = response.support_um();
         if !(lo.is_finite() && hi.is_finite() && hi > lo) {

@@ -603,3 +603,71 @@ fn run_with_assess_puts_the_figures_of_merit_in_the_report() {
     let html = std::fs::read_to_string(plain.join("report.html")).unwrap();
     assert!(!html.contains("figures-of-merit") && !plain.join("probability.png").exists());
 }
+
+/// A sensor with turbulence: the TTP value at each range is computed with the turbulence
+/// MTF of that range (the printed per-range CTF_sys tables integrate to the reported V by
+/// an independent quadrature; at the sensor file's own range they equal its table), and
+/// the identification range is shorter than without turbulence.
+#[test]
+fn turbulence_is_evaluated_over_each_range() {
+    use eoir::sensor::config::TurbulenceConfig;
+    let base = presets::load(
+        "multimir",
+        &[],
+        &["detector.rows=64".into(), "detector.cols=64".into()],
+    )
+    .unwrap();
+    let mut c = base.clone();
+    c.turbulence = Some(TurbulenceConfig::Horizontal {
+        enabled: true,
+        cn2: 1e-13,
+        range_m: 1000.0,
+    });
+    let (clear, turb) = (Sensor::build(&base).unwrap(), Sensor::build(&c).unwrap());
+    let opts = AssessOptions {
+        analytic_only: true,
+        ranges_m: vec![500.0, 1000.0, 2000.0, 4000.0],
+        ..Default::default()
+    };
+    let a = assess::analytic(&turb, &opts).unwrap();
+    let rows = a.ctf_sys_at_range.as_ref().expect("per-range tables");
+    assert!(assess::analytic(&clear, &opts)
+        .unwrap()
+        .ctf_sys_at_range
+        .is_none());
+    // At the file's own range (1000 m) the per-range table is the sensor's own.
+    for (x, y) in rows[1].ctf_sys_h.iter().zip(&a.ctf_sys_h) {
+        assert!(
+            (x / y.ctf_sys - 1.0).abs() < 1e-12 || (x.is_infinite() && y.ctf_sys.is_infinite())
+        );
+    }
+    // The table degrades with range (the turbulence MTF falls as the path lengthens).
+    let mid = rows[0].ctf_sys_h.len() / 4;
+    assert!(
+        rows[3].ctf_sys_h[mid] > rows[2].ctf_sys_h[mid]
+            && rows[2].ctf_sys_h[mid] > rows[0].ctf_sys_h[mid]
+    );
+    // V at each range by Simpson over that range's tables.
+    let with = |t: &[f64]| -> Vec<CtfSample> {
+        a.ctf_sys_h
+            .iter()
+            .zip(t)
+            .map(|(s, &c)| CtfSample { ctf_sys: c, ..*s })
+            .collect()
+    };
+    for (k, row) in rows.iter().enumerate() {
+        let c = a.contrast[k];
+        let v = a.target.size_m / row.range_m
+            * 1e3
+            * (simpson(&with(&row.ctf_sys_h), c) * simpson(&with(&row.ctf_sys_v), c)).sqrt();
+        assert!(
+            (v / a.ttp_v[k] - 1.0).abs() < 0.01,
+            "{} m: {v} vs {}",
+            row.range_m,
+            a.ttp_v[k]
+        );
+    }
+    let id = |a: &assess::Analytic| a.tasks[2].range_p50_m.unwrap();
+    let plain = assess::analytic(&clear, &opts).unwrap();
+    assert!(id(&a) < id(&plain), "{} vs {}", id(&a), id(&plain));
+}
