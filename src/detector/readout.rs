@@ -41,9 +41,8 @@
 //! `A²·[ln(N/2) − Cin(πτ) + Cin(2πτ/N)]`, with the lags τ + mL aliased onto it: within
 //! 1.1 % of the variance at every lag of the frame with L = 2N (a grid of 1.25 N: 4.4 %;
 //! `pink_covariance_over_the_frame_matches_the_model_at_every_lag`). The draws and the
-//! FFT are in single
-//! precision (relative rounding ≈ 6e-8 of the noise, far below any effect on its
-//! statistics), which halves their cost.
+//! FFT are in single precision (relative rounding ≈ 6e-8 of the noise, far below any
+//! effect on its statistics), which halves their cost.
 
 use std::cell::RefCell;
 
