@@ -95,7 +95,11 @@ pub struct DemoArgs {
     quiet: bool,
 }
 
-/// Runs the input through the sensor, writing the products.
+/// Runs the input through the sensor, writing each frame's products into `output` as soon
+/// as the frame is exposed ([`pipeline::run_streaming`] into a [`pipeline::ProductWriter`]),
+/// so the memory does not grow with the frame count; the products of the whole run are
+/// written at the end. On an error `output` holds a partial set: the caller writes into a
+/// staging directory that is dropped on error.
 fn run_file(
     sensor: &Sensor,
     input: &Path,
@@ -104,7 +108,7 @@ fn run_file(
     read: &eoir::io::ReadOptions,
     quiet: bool,
     require_temperature: bool,
-) -> Result<pipeline::RunOutput> {
+) -> Result<pipeline::StreamedRun> {
     if require_temperature && !sensor.is_thermal() {
         bail!(
             "--require-temperature: sensor `{}` does not respond beyond 3 µm, so it has no apparent-temperature products",
@@ -131,15 +135,20 @@ fn run_file(
     if options.input_name == RunOptions::default().input_name {
         options.input_name = input.display().to_string();
     }
-    let out = pipeline::run(sensor, reader.as_mut(), &options, |done, total| {
-        progress.imaging(done, total)
-    })?;
-    let no_temperature = pipeline::calibrate::missing_temperature(sensor, &out);
+    let mut writer = pipeline::ProductWriter::new(output)?;
+    let out = pipeline::run_streaming(
+        sensor,
+        reader.as_mut(),
+        &options,
+        |done, total| progress.imaging(done, total),
+        &mut writer,
+    )?;
+    let no_temperature = pipeline::calibrate::missing_temperature_of(sensor, &out.summary());
     if let (true, Some(reason)) = (require_temperature, &no_temperature) {
         bail!("--require-temperature: {reason}");
     }
     progress.writing();
-    out.write(output)?;
+    writer.finish(&out.summary())?;
     progress.finish();
     for w in &out.warnings {
         eprintln!("warning: {w}");
@@ -313,8 +322,9 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
         outs.push((lambda, out));
     }
-    let refs: Vec<(f64, &pipeline::RunOutput)> = outs.iter().map(|(l, o)| (*l, o)).collect();
-    let rgb = pipeline::false_colour_composite(&refs)?;
+    let refs: Vec<(f64, &pipeline::FrameProducts)> =
+        outs.iter().map(|(l, o)| (*l, &o.first)).collect();
+    let rgb = pipeline::false_colour_composite_of(&refs)?;
     let p = set.staging_dir().join("composite.png");
     eoir::io::raster::write_png_rgb8(&p, rgb.view()).map_err(|e| set.name_final(e))?;
     let final_png = set.final_path(&p);
