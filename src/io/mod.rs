@@ -34,6 +34,7 @@ pub mod input;
 pub mod mapped;
 pub mod metadata;
 pub mod npy;
+pub mod npy_stack;
 pub mod output;
 pub mod raster;
 pub(crate) mod spill;

@@ -443,7 +443,7 @@ impl Facts {
 /// The page for `out` with `pictures` inline: one function per section, in page order.
 pub fn render_page(out: &RunSummary, pictures: &RunPictures) -> Result<String> {
     let facts = Facts {
-        r: serde_json::to_value(&out.report)
+        r: serde_json::to_value(out.report)
             .map_err(|e| Error::param("run report", e.to_string(), "a serialisable report"))?,
     };
     let mut h = String::new();
