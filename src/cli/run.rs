@@ -112,7 +112,11 @@ pub struct DemoArgs {
     quiet: bool,
 }
 
-/// Runs the input through the sensor, writing the products.
+/// Runs the input through the sensor, writing each frame's products into `output` as soon
+/// as the frame is exposed ([`pipeline::run_streaming`] into a [`pipeline::ProductWriter`]),
+/// so the memory does not grow with the frame count; the products of the whole run are
+/// written at the end. On an error `output` holds a partial set: the caller writes into a
+/// staging directory that is dropped on error.
 fn run_file(
     sensor: &Sensor,
     input: &Path,
@@ -120,7 +124,7 @@ fn run_file(
     mut options: RunOptions,
     read: &eoir::io::ReadOptions,
     how: FileRun,
-) -> Result<pipeline::RunOutput> {
+) -> Result<pipeline::StreamedRun> {
     let FileRun {
         quiet,
         require_temperature,
@@ -152,18 +156,29 @@ fn run_file(
     if options.input_name == RunOptions::default().input_name {
         options.input_name = input.display().to_string();
     }
-    let mut out = pipeline::run(sensor, reader.as_mut(), &options, |done, total| {
-        progress.imaging(done, total)
-    })?;
+    let mut writer = pipeline::ProductWriter::new(output)?;
+    let mut out = pipeline::run_streaming(
+        sensor,
+        reader.as_mut(),
+        &options,
+        |done, total| progress.imaging(done, total),
+        &mut writer,
+    )?;
     if assess {
-        eoir::merit::run_report::attach(&mut out, &Default::default())?;
+        let parts = eoir::merit::run_report::RunParts {
+            sensor: &out.sensor,
+            report: &mut out.report,
+            warnings: &mut out.warnings,
+            extra_sections: &mut out.extra_sections,
+        };
+        eoir::merit::run_report::attach_to(parts, &Default::default())?;
     }
-    let no_temperature = pipeline::calibrate::missing_temperature(sensor, &out);
+    let no_temperature = pipeline::calibrate::missing_temperature_of(sensor, &out.summary());
     if let (true, Some(reason)) = (require_temperature, &no_temperature) {
         bail!("--require-temperature: {reason}");
     }
     progress.writing();
-    out.write(output)?;
+    writer.finish(&out.summary())?;
     progress.finish();
     for w in &out.warnings {
         eprintln!("warning: {w}");
@@ -343,8 +358,9 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
         outs.push((lambda, out));
     }
-    let refs: Vec<(f64, &pipeline::RunOutput)> = outs.iter().map(|(l, o)| (*l, o)).collect();
-    let rgb = pipeline::false_colour_composite(&refs)?;
+    let refs: Vec<(f64, &pipeline::FrameProducts)> =
+        outs.iter().map(|(l, o)| (*l, &o.first)).collect();
+    let rgb = pipeline::false_colour_composite_of(&refs)?;
     let p = set.staging_dir().join("composite.png");
     eoir::io::raster::write_png_rgb8(&p, rgb.view()).map_err(|e| set.name_final(e))?;
     let final_png = set.final_path(&p);

@@ -10,30 +10,58 @@ use crate::error::{Error, Result};
 use crate::pipeline::report_html::{ExtraSection, Picture};
 use crate::pipeline::RunOutput;
 use crate::plot::significant;
+use crate::report::RunReport;
+use crate::sensor::Sensor;
 
-/// Evaluates the analytic figures of `out`'s sensor with `opts` and adds them to `out`'s
-/// report and page. A sensor without figures (e.g. its reference level saturates) is
-/// not an error of the run: the reason becomes a warning of the run and the page's section
-/// says so.
+/// What [`attach_to`] adds to: the parts of a run's output (a [`RunOutput`] or a
+/// streamed run, `crate::pipeline::StreamedRun`) that its report is written from.
+pub struct RunParts<'a> {
+    /// The run's sensor.
+    pub sensor: &'a Sensor,
+    /// The run's report (`report.json`).
+    pub report: &'a mut RunReport,
+    /// The run's warnings.
+    pub warnings: &'a mut Vec<String>,
+    /// The sections added to `report.html`.
+    pub extra_sections: &'a mut Vec<ExtraSection>,
+}
+
+/// [`attach_to`] for a collected run.
 pub fn attach(out: &mut RunOutput, opts: &AssessOptions) -> Result<()> {
+    attach_to(
+        RunParts {
+            sensor: &out.sensor,
+            report: &mut out.report,
+            warnings: &mut out.warnings,
+            extra_sections: &mut out.extra_sections,
+        },
+        opts,
+    )
+}
+
+/// Evaluates the analytic figures of the run's sensor with `opts` and adds them to its
+/// report and page. A sensor without figures (e.g. its reference level saturates) is not
+/// an error of the run: the reason becomes a warning of the run and the page's section
+/// says so.
+pub fn attach_to(run: RunParts<'_>, opts: &AssessOptions) -> Result<()> {
     let opts = AssessOptions {
         analytic_only: true,
         ..opts.clone()
     };
     opts.validate()?;
-    match assess::analytic(&out.sensor, &opts) {
+    match assess::analytic(run.sensor, &opts) {
         Ok(an) => {
-            out.report.figures_of_merit =
+            run.report.figures_of_merit =
                 Some(serde_json::to_value(&an).map_err(|e| {
                     Error::param("figures of merit", e.to_string(), "serialisable")
                 })?);
-            out.extra_sections.push(section(&an)?);
+            run.extra_sections.push(section(&an)?);
         }
         Err(e) => {
             let w = format!("figures of merit not evaluated: {e}");
-            out.report.warnings.push(w.clone());
-            out.warnings.push(w.clone());
-            out.extra_sections.push(ExtraSection {
+            run.report.warnings.push(w.clone());
+            run.warnings.push(w.clone());
+            run.extra_sections.push(ExtraSection {
                 id: "figures-of-merit",
                 title: "Figures of merit (analytic)".into(),
                 rows: vec![],

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use serde_json::Value;
 
-use super::RunOutput;
+use super::RunSummary;
 use crate::display::{self, base64, Stretch};
 use crate::error::{Error, Result};
 use crate::plot::{self, HistogramPlot, Marker};
@@ -85,11 +85,8 @@ pub struct RunPictures {
 
 impl RunPictures {
     /// Draws the pictures of frame 0 of `out`.
-    pub fn render(out: &RunOutput) -> Result<RunPictures> {
-        let frame = out
-            .frames
-            .first()
-            .ok_or_else(|| Error::param("run output", "no frames", "at least one exposed frame"))?;
+    pub fn render(out: &RunSummary) -> Result<RunPictures> {
+        let frame = out.first;
         let (grey, dn_stretch) = display::dn_display(frame.dn.view());
         let (rows, cols) = grey.dim();
         let samples: Vec<u8> = grey.iter().copied().collect();
@@ -128,7 +125,7 @@ impl RunPictures {
         let optics = &out.report.optics;
         let mtf = match optics.mean_wavelength_um {
             Some(l) => {
-                let curves = MtfCurves::compute(&out.sensor, l, None, MTF_POINTS)?;
+                let curves = MtfCurves::compute(out.sensor, l, None, MTF_POINTS)?;
                 Some(Picture {
                     file_name: "mtf.png",
                     png: curves.render_png(&out.sensor.name)?,
@@ -140,14 +137,14 @@ impl RunPictures {
             }
             None => None,
         };
-        let trajectory = match &out.line_of_sight {
+        let trajectory = match out.line_of_sight {
             Some(truth) => Some(Picture {
                 file_name: "trajectory.png",
                 png: super::motion::trajectory_png(truth)?,
                 caption: format!(
                     "line of sight: mean image displacement and smear per exposure window, detector pixels ({} windows; values in los.csv){}",
                     truth.len(),
-                    if out.frames.len() > 1 {
+                    if out.frame_count > 1 {
                         "; the sequence itself: preview.png (animated)"
                     } else {
                         ""
@@ -169,7 +166,7 @@ impl RunPictures {
             }),
             None => None,
         };
-        let spectral = spectral_response(&out.sensor)?;
+        let spectral = spectral_response(out.sensor)?;
         Ok(RunPictures {
             dn,
             dn_stretch,
@@ -266,8 +263,8 @@ fn spectral_response(sensor: &crate::sensor::Sensor) -> Result<Option<Picture>> 
 }
 
 /// The DN histogram of frame 0, with the display stretch and full scale marked.
-fn dn_histogram(out: &RunOutput, stretch: &Stretch) -> Result<Picture> {
-    let dn = &out.frames[0].dn;
+fn dn_histogram(out: &RunSummary, stretch: &Stretch) -> Result<Picture> {
+    let dn = &out.first.dn;
     let mut sorted: Vec<f64> = dn.iter().map(|v| *v as f64).collect();
     sorted.sort_by(f64::total_cmp);
     let span = (stretch.hi - stretch.lo).max(10.0);
@@ -460,9 +457,9 @@ impl Facts {
 }
 
 /// The page for `out` with `pictures` inline: one function per section, in page order.
-pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
+pub fn render_page(out: &RunSummary, pictures: &RunPictures) -> Result<String> {
     let facts = Facts {
-        r: serde_json::to_value(&out.report)
+        r: serde_json::to_value(out.report)
             .map_err(|e| Error::param("run report", e.to_string(), "a serialisable report"))?,
     };
     let mut h = String::new();
@@ -476,7 +473,7 @@ pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
     section_calibration(&mut h, &facts);
     h.push_str("</div>\n");
     section_pictures(&mut h, pictures);
-    for extra in &out.extra_sections {
+    for extra in out.extra_sections {
         section_extra(&mut h, extra);
     }
     section_footer(&mut h, &facts);
@@ -484,8 +481,8 @@ pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
 }
 
 /// `<head>`, title and the header: sensor, description, options, seed, input, version.
-fn section_head(h: &mut String, out: &RunOutput, facts: &Facts) {
-    let sensor = &out.sensor;
+fn section_head(h: &mut String, out: &RunSummary, facts: &Facts) {
+    let sensor = out.sensor;
     let options = facts
         .r
         .pointer("/options")
@@ -870,7 +867,7 @@ fn section_footer(h: &mut String, facts: &Facts) {
 }
 
 /// Writes the pictures and `report.html` into `dir`. Returns the paths written.
-pub fn write(out: &RunOutput, dir: &Path) -> Result<Vec<PathBuf>> {
+pub fn write(out: &RunSummary, dir: &Path) -> Result<Vec<PathBuf>> {
     let pictures = RunPictures::render(out)?;
     let mut written = pictures.write(dir)?;
     for p in out.extra_sections.iter().flat_map(|s| &s.pictures) {
