@@ -744,6 +744,37 @@ mod tests {
         assert_eq!(zero_gap(&col), (4, 5));
     }
 
+    /// The AVX2 build of the column fold gives the portable one's values to the bit (with
+    /// and without a blur, with a zero gap and without).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_avx2_fold_is_the_portable_fold() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let (rows, my) = (30usize, 10usize);
+        let c = |t: usize, a: f64| Complex64::new((a * t as f64).sin(), (0.7 * a * t as f64).cos());
+        let col: Vec<Complex64> = (0..rows).map(|t| c(t, 1.3)).collect();
+        let h: Vec<Complex64> = (0..rows).map(|t| c(t, 0.37)).collect();
+        let alias: Vec<Complex64> = (0..rows).map(|t| c(t, 2.1)).collect();
+        let ramp: Vec<Complex64> = (0..my).map(|t| c(t, 0.9)).collect();
+        for gap in [(16usize, 16usize), (12, 21)] {
+            for blur in [None, Some(&h[..])] {
+                let mut a = vec![Complex64::new(0.0, 0.0); my];
+                let mut b = a.clone();
+                fold_column_portable(&col, blur, &alias, &ramp, gap, &mut a);
+                // SAFETY: AVX2 is present (checked above).
+                unsafe { fold_column_avx2(&col, blur, &alias, &ramp, gap, &mut b) };
+                for (x, y) in a.iter().zip(&b) {
+                    assert_eq!(
+                        (x.re.to_bits(), x.im.to_bits()),
+                        (y.re.to_bits(), y.im.to_bits())
+                    );
+                }
+            }
+        }
+    }
+
     /// Lengths that are not multiples of the ratio have no lattice inverse.
     #[test]
     fn indivisible_lengths_have_none() {

@@ -646,6 +646,40 @@ mod tests {
         }
     }
 
+    /// The AVX2 build of a path's column gives the portable one's values to the bit, and
+    /// leaves the rows of a gap untouched.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_avx2_column_is_the_portable_column() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let points: Vec<[f64; 2]> = (0..5)
+            .map(|i| {
+                let t = i as f64 / 4.0;
+                [3e-4 * (5.0 * t).sin(), 2e-4 * t * t - 1e-4 * t]
+            })
+            .collect();
+        let segments = Segments::of(&WindowPath::from_points(&points, 0.0));
+        let grid = FrequencyGrid::real_fft(22, 20, 1e-4, 1.2e-4);
+        for gap in [(22usize, 22usize), (7, 15)] {
+            let marker = Complex64::new(7.0, -7.0);
+            let mut a = vec![marker; 22];
+            let mut b = a.clone();
+            segments.column_portable(grid.fx[3], &grid.fy, gap, &mut a);
+            // SAFETY: AVX2 is present (checked above).
+            unsafe { segments.column_avx2(grid.fx[3], &grid.fy, gap, &mut b) };
+            for (v, (x, y)) in a.iter().zip(&b).enumerate() {
+                assert_eq!(
+                    (x.re.to_bits(), x.im.to_bits()),
+                    (y.re.to_bits(), y.im.to_bits())
+                );
+                let in_gap = gap.0 < gap.1 && (gap.0..gap.1).contains(&v);
+                assert_eq!(*x == marker, in_gap, "row {v}");
+            }
+        }
+    }
+
     /// The shift factor of one row equals `shift_phase` bin by bin.
     #[test]
     fn shift_row_is_the_shift_phase() {
