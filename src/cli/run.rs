@@ -156,7 +156,16 @@ fn run_file(
     if options.input_name == RunOptions::default().input_name {
         options.input_name = input.display().to_string();
     }
+    // The products stream to disk, so memory no longer bounds the frame count: the disk
+    // does. At least 8 bytes per pixel and frame (dn.tiff, electrons_mean.tiff, the stack).
+    let frames = if reader.frames() == 1 {
+        options.frames
+    } else {
+        reader.frames()
+    };
     let mut writer = pipeline::ProductWriter::new(output)?;
+    let d = &sensor.detector;
+    eoir::io::output::check_room_for_frames(output, frames, d.rows * d.cols, 8)?;
     let mut out = pipeline::run_streaming(
         sensor,
         reader.as_mut(),

@@ -365,7 +365,13 @@ impl FrameConsumer for ProductWriter {
             ));
         }
         self.frames = frames;
-        self.calibrated.reserve(frames);
+        self.calibrated.try_reserve(frames).map_err(|_| {
+            Error::param(
+                "frames",
+                frames,
+                "a count whose per-frame record fits in memory (it overflows)",
+            )
+        })?;
         Ok(())
     }
 
