@@ -236,6 +236,34 @@ impl LatticeInverse {
         })
     }
 
+    /// The residues `wanted[i] mod ky`, sorted, each once: the columns are folded once
+    /// per residue.
+    fn residues(&self, wanted: &[usize]) -> Vec<usize> {
+        let mut residues: Vec<usize> = wanted.iter().map(|w| w % self.ky).collect();
+        residues.sort_unstable();
+        residues.dedup();
+        residues
+    }
+
+    /// The factors of the fold along a column for the lattice rows of residue `r`: per
+    /// frame row v, `e^{2πi m r/k}` for alias m = v / M times `per_row[v]`; and per folded
+    /// bin v', `e^{2πi v' r/N}`.
+    fn fold_factors(
+        &self,
+        r: usize,
+        per_row: Option<&[Complex64]>,
+    ) -> (Vec<Complex64>, Vec<Complex64>) {
+        let (rows, my) = (self.rows, self.my);
+        let alias = (0..rows)
+            .map(|v| {
+                let a = self.unit_y[((v / my) * my * r) % rows];
+                per_row.map_or(a, |p| a * p[v])
+            })
+            .collect();
+        let ramp = (0..my).map(|v| self.unit_y[(v * r) % rows]).collect();
+        (alias, ramp)
+    }
+
     /// The number of lattice rows and columns, `(rows / ky, cols / kx)`.
     pub fn lattice_shape(&self) -> (usize, usize) {
         (self.my, self.mx)
@@ -287,18 +315,9 @@ impl LatticeInverse {
         let c = x_start % cols;
         // The zero gap of every column, once for all residues.
         let gaps: Vec<(usize, usize)> = spec_t.par_chunks(rows).map(zero_gap).collect();
-        let mut residues: Vec<usize> = wanted.iter().map(|w| w % self.ky).collect();
-        residues.sort_unstable();
-        residues.dedup();
         let mut folded = vec![zero; hq * my];
-        for r in residues {
-            let alias: Vec<Complex64> = (0..rows)
-                .map(|v| {
-                    let a = self.unit_y[((v / my) * my * r) % rows];
-                    per_row.map_or(a, |p| a * p[v])
-                })
-                .collect();
-            let ramp: Vec<Complex64> = (0..my).map(|v| self.unit_y[(v * r) % rows]).collect();
+        for r in self.residues(wanted) {
+            let (alias, ramp) = self.fold_factors(r, per_row);
             folded.par_chunks_mut(my).enumerate().for_each_init(
                 || (vec![zero; rows], vec![zero; my]),
                 |(h, y), (q, dst)| {
@@ -407,20 +426,9 @@ impl LatticeInverse {
         );
         let mut out = Array2::<f64>::zeros((wanted.len(), n_cols));
         let zero = Complex64::new(0.0, 0.0);
-        let mut residues: Vec<usize> = wanted.iter().map(|w| w % self.ky).collect();
-        residues.sort_unstable();
-        residues.dedup();
         let mut folded = vec![zero; hc * my];
-        for r in residues {
-            // e^{2πi m r/k} for alias m = v / M times the per-row factor of v, and
-            // e^{2πi v' r/N} for every folded bin v'.
-            let alias: Vec<Complex64> = (0..rows)
-                .map(|v| {
-                    let a = self.unit_y[((v / my) * my * r) % rows];
-                    factors.per_row.map_or(a, |p| a * p[v])
-                })
-                .collect();
-            let ramp: Vec<Complex64> = (0..my).map(|v| self.unit_y[(v * r) % rows]).collect();
+        for r in self.residues(wanted) {
+            let (alias, ramp) = self.fold_factors(r, factors.per_row);
             folded.par_chunks_mut(my).enumerate().for_each_init(
                 || {
                     vec![

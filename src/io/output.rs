@@ -611,7 +611,11 @@ pub fn free_bytes(dir: &Path) -> Option<u64> {
 /// per pixel and frame (the uncompressed rasters every frame writes), which must not
 /// overflow and must be below the free space (when it can be asked, [`free_bytes`]).
 ///
-/// Errors: an overflowing size, or more than the free space; both name the frame count.
+/// A single frame is not checked: a disk too full for it fails at the write with the
+/// system's "no space left".
+///
+/// Errors: an overflowing size, or (two frames or more) more than the free space; both
+/// name the frame count.
 pub fn check_room_for_frames(
     dir: &Path,
     frames: usize,
@@ -630,15 +634,20 @@ pub fn check_room_for_frames(
                 ),
             )
         })?;
+    // One frame is the ordinary case: a disk too full for it fails at the write, with the
+    // system's own "no space left" error. The check is for sequences long enough to fill it.
+    if frames < 2 {
+        return Ok(());
+    }
     if let Some(free) = free_bytes(dir) {
         if need > free {
             return Err(Error::param(
                 "frames",
                 frames,
                 format!(
-                    "a count whose products fit on the disk: {frames} frames of {pixels} pixels take at least {} GB, and the output's file system has {} GB free",
-                    need.div_ceil(1_000_000_000),
-                    free / 1_000_000_000
+                    "a count whose products fit on the disk: {frames} frames of {pixels} pixels take at least {}, and the output's file system has {} free",
+                    crate::error::human_bytes(need),
+                    crate::error::human_bytes(free)
                 ),
             ));
         }
