@@ -517,7 +517,7 @@ pub fn analytic(sensor: &Sensor, opts: &AssessOptions) -> Result<Analytic> {
     // path, else with turbulence and aerosol evaluated over r.
     let over_range = sensor.otf().depends_on_range();
     let tables_at = |r: f64| -> Result<(Vec<CtfSample>, Vec<CtfSample>)> {
-        let t = SensorTransfer::with_otf(sensor, sensor.otf().over_range(r)?)?;
+        let t = transfer.over_range(r)?;
         Ok((
             ttp::ctf_sys_table(|f| t.eval(f, 0.0), &ts, &display, CTF_TABLE_POINTS)?,
             ttp::ctf_sys_table(|f| t.eval(0.0, f), &ts, &display, CTF_TABLE_POINTS)?,
@@ -529,21 +529,25 @@ pub fn analytic(sensor: &Sensor, opts: &AssessOptions) -> Result<Analytic> {
         }
         tables_at(r).map_or(f64::NAN, |(h, v)| target.value_at(&h, &v, r))
     };
-    let ctf_sys_at_range = if over_range {
+    // V on the range grid, and for a path-dependent MTF each range's tables (computed once
+    // for both).
+    let (ttp_v, ctf_sys_at_range) = if over_range {
+        let mut v = Vec::with_capacity(opts.ranges_m.len());
         let mut rows = Vec::with_capacity(opts.ranges_m.len());
         for &r in &opts.ranges_m {
-            let (h, v) = tables_at(r)?;
+            let (h, vt) = tables_at(r)?;
+            v.push(target.value_at(&h, &vt, r));
             rows.push(RangeCtf {
                 range_m: r,
                 ctf_sys_h: h.iter().map(|c| c.ctf_sys).collect(),
-                ctf_sys_v: v.iter().map(|c| c.ctf_sys).collect(),
+                ctf_sys_v: vt.iter().map(|c| c.ctf_sys).collect(),
             });
         }
-        Some(rows)
+        (v, Some(rows))
     } else {
-        None
+        let v = opts.ranges_m.iter().map(|&r| value_at(r)).collect();
+        (v, None)
     };
-    let ttp_v: Vec<f64> = opts.ranges_m.iter().map(|&r| value_at(r)).collect();
     let (rmin, rmax) = (opts.ranges_m[0], *opts.ranges_m.last().expect("≥ 2 ranges"));
     let tasks = ttp::DEFAULT_TASKS
         .iter()
