@@ -1024,19 +1024,6 @@ const RESTORE_BYTES_PER_PIXEL: u64 = 192;
 /// Peak memory of an edge-MTF measurement per image pixel, bytes (the CLI's).
 const EDGE_MTF_BYTES_PER_PIXEL: u64 = 64;
 
-/// Mean, standard deviation, minimum and maximum (as `restore.json` reports them).
-fn stats(a: &Array2<f64>) -> serde_json::Value {
-    let n = a.len() as f64;
-    let mean = a.sum() / n;
-    let var = a.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n;
-    let (lo, hi) = a
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-            (l.min(*v), h.max(*v))
-        });
-    serde_json::json!({ "mean": mean, "std": var.sqrt(), "min": lo, "max": hi })
-}
-
 /// Wiener restoration of a recorded image with the sensor's transfer function (as `eoir
 /// restore`). `image` is f64 `[row, col]`; `is_dn` says it holds DN (else f32 values in
 /// `units`, "electrons" or "radiance"). Returns `{restored (f32, what restored.tiff
@@ -1164,8 +1151,8 @@ fn restore<'py>(
                 "components": sensor.otf().components().iter().map(|c| c.name()).collect::<Vec<_>>(),
             },
             "padded_shape": [r.padded_shape.0, r.padded_shape.1],
-            "input_stats": stats(&image),
-            "output_stats": stats(&restored),
+            "input_stats": eoir::processing::wiener::ImageStats::of(&image),
+            "output_stats": eoir::processing::wiener::ImageStats::of(&restored),
         });
         let text = serde_json::to_string(&report)
             .map_err(|e| eoir::Error::param("report", "restore", e.to_string()))?;

@@ -11,7 +11,7 @@ use eoir::display;
 use eoir::io::output::ProductSet;
 use eoir::io::raster;
 use eoir::processing::wiener::{
-    self, replace_invalid_pixels, NoiseRule, SensorTransfer, IMPULSE_K_SIGMA,
+    self, replace_invalid_pixels, ImageStats, NoiseRule, SensorTransfer, IMPULSE_K_SIGMA,
 };
 
 use super::sensor_args::SensorArgs;
@@ -140,19 +140,6 @@ pub struct RestoreArgs {
     pub output: PathBuf,
     #[command(flatten)]
     pub sequence: super::restore_sequence::SequenceArgs,
-}
-
-/// Mean, standard deviation, minimum and maximum.
-fn stats(a: &Array2<f64>) -> serde_json::Value {
-    let n = a.len() as f64;
-    let mean = a.sum() / n;
-    let var = a.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n;
-    let (lo, hi) = a
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-            (l.min(*v), h.max(*v))
-        });
-    json!({ "mean": mean, "std": var.sqrt(), "min": lo, "max": hi })
 }
 
 /// An 8-bit grey display image with the same percentile stretch as `dn.png`
@@ -287,8 +274,8 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
             "components": sensor.otf().components().iter().map(|c| c.name()).collect::<Vec<_>>(),
         },
         "padded_shape": [r.padded_shape.0, r.padded_shape.1],
-        "input_stats": stats(&image),
-        "output_stats": stats(&restored),
+        "input_stats": ImageStats::of(&image),
+        "output_stats": ImageStats::of(&restored),
     });
     // Everything is computed: only now touch the output directory, all three products
     // as one set (the old set stays whole until the new one is complete).

@@ -11,7 +11,7 @@ use serde_json::json;
 
 use eoir::processing::bad_pixels;
 use eoir::processing::multi_frame::{restore_sequence as restore_stack, SequenceNoise};
-use eoir::processing::wiener::{SensorTransfer, IMPULSE_K_SIGMA};
+use eoir::processing::wiener::{ImageStats, SensorTransfer, IMPULSE_K_SIGMA};
 use eoir::sensor::{presets, Sensor};
 
 use super::restore::RestoreArgs;
@@ -104,19 +104,6 @@ fn read_truth(path: &Path, frames: usize) -> Result<Vec<(f64, f64)>> {
     }
     let (x0, y0) = (out[0].1, out[0].2);
     Ok(out.iter().map(|(_, x, y)| (x - x0, y - y0)).collect())
-}
-
-/// Mean, standard deviation, minimum and maximum.
-fn stats(a: &ndarray::Array2<f64>) -> serde_json::Value {
-    let n = a.len() as f64;
-    let mean = a.sum() / n;
-    let var = a.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n;
-    let (lo, hi) = a
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-            (l.min(*v), h.max(*v))
-        });
-    json!({ "mean": mean, "std": var.sqrt(), "min": lo, "max": hi })
 }
 
 /// `eoir restore` of a sequence.
@@ -267,7 +254,7 @@ pub fn restore_sequence(args: &RestoreArgs) -> Result<()> {
         "nsr_median": r.restoration.nsr_median,
         "object_spectrum_exponent": r.restoration.spectrum_exponent,
         "padded_shape": [r.restoration.padded_shape.0, r.restoration.padded_shape.1],
-        "output_stats": stats(&restored),
+        "output_stats": ImageStats::of(&restored),
     });
     let written = super::restore::write_restored(
         &args.output,
