@@ -17,18 +17,9 @@ use super::sensor_args::SensorArgs;
 pub struct AssessArgs {
     #[command(flatten)]
     pub sensor: SensorArgs,
-    /// Target: comma-separated `key=value` of `size_m` (√area, default 2.3), `delta_t_k`
-    /// (thermal ΔT, 2), `contrast` (reflective, 0.3), `sct_k` (scene contrast temperature,
-    /// 4), `extinction_per_km` (default: the sensor's [aerosol], else 0).
-    #[arg(long, value_name = "KEY=VALUE,…")]
-    pub target: Option<String>,
-    /// Ranges `START:STOP:N` in km (N ≥ 2 evenly spaced values, 0 < START < STOP).
-    #[arg(
-        long = "range-km",
-        value_name = "START:STOP:N",
-        default_value = "0.5:20:40"
-    )]
-    pub range_km: String,
+    /// The target and the ranges.
+    #[command(flatten)]
+    pub task: TaskArgs,
     /// Frames of the simulated uniform sequence (3-D noise, NETD).
     #[arg(long, default_value_t = 32)]
     pub frames: usize,
@@ -50,6 +41,38 @@ pub struct AssessArgs {
     /// Output directory (assess.json, CSV tables, PNG plots, assess.html).
     #[arg(short, long)]
     pub output: PathBuf,
+}
+
+/// The target and the range grid of the range performance (`eoir assess`, `eoir sweep`).
+#[derive(Debug, clap::Args)]
+pub struct TaskArgs {
+    /// Target: comma-separated `key=value` of `size_m` (√area, default 2.3), `delta_t_k`
+    /// (thermal ΔT, 2), `contrast` (reflective, 0.3), `sct_k` (scene contrast temperature,
+    /// 4), `extinction_per_km` (default: the sensor's [aerosol], else 0).
+    #[arg(long, value_name = "KEY=VALUE,…")]
+    pub target: Option<String>,
+    /// Ranges `START:STOP:N` in km (N ≥ 2 evenly spaced values, 0 < START < STOP).
+    #[arg(
+        long = "range-km",
+        value_name = "START:STOP:N",
+        default_value = "0.5:20:40"
+    )]
+    pub range_km: String,
+}
+
+impl TaskArgs {
+    /// The target (defaults where not given) and the ranges in m.
+    pub fn parse(&self) -> Result<(TargetSpec, Vec<f64>)> {
+        let target = match &self.target {
+            Some(t) => parse_target(t)?,
+            None => TargetSpec::default(),
+        };
+        let ranges_km = parse_grid(&self.range_km, "--range-km")?;
+        if ranges_km[0] <= 0.0 {
+            bail!("--range-km `{}`: ranges must be > 0 km", self.range_km);
+        }
+        Ok((target, ranges_km.iter().map(|r| r * 1e3).collect()))
+    }
 }
 
 /// Parses `--target key=value,…` onto the defaults.
@@ -116,21 +139,14 @@ fn decimal(v: f64) -> f64 {
 /// `eoir assess`.
 pub fn assess(args: AssessArgs) -> Result<()> {
     let sensor = args.sensor.load()?;
-    let target = match &args.target {
-        Some(t) => parse_target(t)?,
-        None => TargetSpec::default(),
-    };
-    let ranges_km = parse_grid(&args.range_km, "--range-km")?;
-    if ranges_km[0] <= 0.0 {
-        bail!("--range-km `{}`: ranges must be > 0 km", args.range_km);
-    }
+    let (target, ranges_m) = args.task.parse()?;
     let opts = AssessOptions {
         seed: args.seed,
         temperature_k: args.temperature_k,
         frames: args.frames,
         window_px: args.window,
         target,
-        ranges_m: ranges_km.iter().map(|r| r * 1e3).collect(),
+        ranges_m,
         elevation_deg: args.elevation_deg,
         display: None,
         analytic_only: args.analytic_only,

@@ -8,11 +8,11 @@ use std::path::PathBuf;
 use anyhow::{bail, Context, Result};
 use rayon::prelude::*;
 
-use eoir::merit::assess::{self, AssessOptions, TargetSpec};
+use eoir::merit::assess::{self, AssessOptions};
 use eoir::plot::{self, LinePlot, Series};
 use eoir::sensor::{presets, Sensor};
 
-use super::assess::{parse_grid, parse_target};
+use super::assess::{parse_grid, TaskArgs};
 use super::sensor_args::SensorArgs;
 
 /// Arguments of `eoir sweep`.
@@ -24,16 +24,9 @@ pub struct SweepArgs {
     /// A varied sensor field, `KEY=START:STOP:N` (repeatable; the grid is their product).
     #[arg(long = "vary", value_name = "KEY=START:STOP:N", required = true)]
     pub vary: Vec<String>,
-    /// Target, as for `eoir assess --target`.
-    #[arg(long, value_name = "KEY=VALUE,…")]
-    pub target: Option<String>,
-    /// Ranges `START:STOP:N` in km for the range performance.
-    #[arg(
-        long = "range-km",
-        value_name = "START:STOP:N",
-        default_value = "0.5:20:40"
-    )]
-    pub range_km: String,
+    /// The target and the ranges, as for `eoir assess`.
+    #[command(flatten)]
+    pub task: TaskArgs,
     /// Output directory (sweep.csv, one PNG per figure).
     #[arg(short, long)]
     pub output: PathBuf,
@@ -147,17 +140,10 @@ pub fn sweep(args: SweepArgs) -> Result<()> {
         .iter()
         .map(|v| parse_vary(v))
         .collect::<Result<_>>()?;
-    let target = match &args.target {
-        Some(t) => parse_target(t)?,
-        None => TargetSpec::default(),
-    };
-    let ranges_km = parse_grid(&args.range_km, "--range-km")?;
-    if ranges_km[0] <= 0.0 {
-        bail!("--range-km `{}`: ranges must be > 0 km", args.range_km);
-    }
+    let (target, ranges_m) = args.task.parse()?;
     let opts = AssessOptions {
         target,
-        ranges_m: ranges_km.iter().map(|r| r * 1e3).collect(),
+        ranges_m,
         analytic_only: true,
         ..Default::default()
     };
