@@ -264,6 +264,23 @@ impl LatticeInverse {
         (alias, ramp)
     }
 
+    /// The inverse transforms of length M of the folded columns (`folded`: columns of M
+    /// samples, one after another), in place.
+    fn column_inverses(&self, folded: &mut [Complex64]) {
+        let zero = Complex64::new(0.0, 0.0);
+        folded.par_chunks_mut(self.my * 16).for_each_init(
+            || vec![zero; self.col_inverse.get_inplace_scratch_len()],
+            |sc, block| self.col_inverse.process_with_scratch(block, sc),
+        );
+    }
+
+    /// The indices i of the wanted rows of residue `r` (`wanted[i] mod ky = r`).
+    fn rows_of_residue(&self, wanted: &[usize], r: usize) -> Vec<usize> {
+        (0..wanted.len())
+            .filter(|&i| wanted[i] % self.ky == r)
+            .collect()
+    }
+
     /// The number of lattice rows and columns, `(rows / ky, cols / kx)`.
     pub fn lattice_shape(&self) -> (usize, usize) {
         (self.my, self.mx)
@@ -353,14 +370,9 @@ impl LatticeInverse {
                     }
                 },
             );
-            folded.par_chunks_mut(my * 16).for_each_init(
-                || vec![zero; self.col_inverse.get_inplace_scratch_len()],
-                |sc, block| self.col_inverse.process_with_scratch(block, sc),
-            );
+            self.column_inverses(&mut folded);
             let folded: &[Complex64] = &folded;
-            let rows_here: Vec<usize> = (0..wanted.len())
-                .filter(|&i| wanted[i] % self.ky == r)
-                .collect();
+            let rows_here = self.rows_of_residue(wanted, r);
             let norm = 1.0 / (rows * cols) as f64;
             let done: Vec<(usize, Vec<f64>)> = rows_here
                 .par_iter()
@@ -466,14 +478,9 @@ impl LatticeInverse {
                     }
                 },
             );
-            folded.par_chunks_mut(my * 16).for_each_init(
-                || vec![zero; self.col_inverse.get_inplace_scratch_len()],
-                |sc, block| self.col_inverse.process_with_scratch(block, sc),
-            );
+            self.column_inverses(&mut folded);
             let folded: &[Complex64] = &folded;
-            let rows_here: Vec<usize> = (0..wanted.len())
-                .filter(|&i| wanted[i] % self.ky == r)
-                .collect();
+            let rows_here = self.rows_of_residue(wanted, r);
             let done: Vec<(usize, Vec<f64>)> = rows_here
                 .par_iter()
                 .map_init(
