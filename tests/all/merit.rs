@@ -388,13 +388,9 @@ fn assess_cli_writes_products_whose_table_reproduces_v_and_refuses_bad_flags() {
     }
 }
 
-/// `eoir sweep` over two keys: the grid in order, the identification range rising with
-/// focal length, and the same figures as `assess::analytic` at each point.
-#[test]
-fn sweep_cli_tabulates_the_grid_and_matches_assess() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("s");
-    let r = eoir(&[
+/// `eoir sweep` of a 64 × 64 MultimIR with `extra` arguments into `out`.
+fn small_sweep(extra: &[&str], out: &std::path::Path) -> std::process::Output {
+    let mut args = vec![
         "sweep",
         "--sensor",
         "multimir",
@@ -402,15 +398,29 @@ fn sweep_cli_tabulates_the_grid_and_matches_assess() {
         "detector.rows=64",
         "--set",
         "detector.cols=64",
-        "--vary",
-        "optics.focal_length_m=0.1:0.2:3",
-        "--vary",
-        "detector.read_noise_e=600:6000:2",
-        "--range-km",
-        "0.1:20:80",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    ];
+    args.extend(extra);
+    args.extend(["-o", out.to_str().unwrap()]);
+    eoir(&args)
+}
+
+/// `eoir sweep` over two keys: the grid in order, the identification range rising with
+/// focal length, and the same figures as `assess::analytic` at each point.
+#[test]
+fn sweep_cli_tabulates_the_grid_and_matches_assess() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("s");
+    let r = small_sweep(
+        &[
+            "--vary",
+            "optics.focal_length_m=0.1:0.2:3",
+            "--vary",
+            "detector.read_noise_e=600:6000:2",
+            "--range-km",
+            "0.1:20:80",
+        ],
+        &out,
+    );
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let csv = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
@@ -456,19 +466,10 @@ fn sweep_cli_tabulates_the_grid_and_matches_assess() {
     assert!(lines[3].starts_with("0.15,600,"), "{}", lines[3]);
     // A point whose reference saturates is an empty row with a note, not a failed sweep.
     let sat = dir.path().join("sat");
-    let r = eoir(&[
-        "sweep",
-        "--sensor",
-        "multimir",
-        "--set",
-        "detector.rows=64",
-        "--set",
-        "detector.cols=64",
-        "--vary",
-        "detector.integration_time_s=0.001:0.04:2",
-        "-o",
-        sat.to_str().unwrap(),
-    ]);
+    let r = small_sweep(
+        &["--vary", "detector.integration_time_s=0.001:0.04:2"],
+        &sat,
+    );
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success(), "{err}");
     assert!(
