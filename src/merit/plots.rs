@@ -4,7 +4,7 @@
 
 use super::assess::Analytic;
 use crate::error::Result;
-use crate::plot::{self, LinePlot, Marker, Series};
+use crate::plot::{self, LinePlot, Marker, PlotOptions, Series};
 
 /// Pixel size of every figures-of-merit plot.
 const SIZE_PX: (u32, u32) = (900, 600);
@@ -43,42 +43,56 @@ pub fn probability_png(an: &Analytic) -> Result<Vec<u8>> {
     })
 }
 
-/// `mrtd.png`: the analytic MRTD against bar frequency with the Nyquist frequency marked
-/// (thermal sensors; `None` otherwise). The y axis stops at 20× the lowest-frequency value
-/// so the divergence toward the cutoff does not flatten the curve.
+/// `mrtd.png`: the analytic MRTD against bar frequency on a logarithmic axis (as MRTD
+/// curves are drawn), the Nyquist frequency marked (thermal sensors; `None` otherwise).
+/// Points above 1000× the lowest MRTD (the divergence toward the cutoff) are left out
+/// rather than clipped to the frame, so no drawn segment is an artefact of the axis.
 pub fn mrtd_png(an: &Analytic) -> Result<Option<Vec<u8>>> {
     let Some(mrtd) = &an.mrtd else {
         return Ok(None);
     };
-    let pts: Vec<_> = mrtd.iter().filter(|p| p.mrtd_k.is_finite()).collect();
-    if pts.is_empty() {
+    let lowest = mrtd
+        .iter()
+        .map(|p| p.mrtd_k)
+        .filter(|m| m.is_finite() && *m > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    if !lowest.is_finite() {
         return Ok(None);
     }
+    let pts: Vec<_> = mrtd
+        .iter()
+        .filter(|p| p.mrtd_k.is_finite() && p.mrtd_k <= MRTD_SPAN * lowest)
+        .collect();
     let f: Vec<f64> = pts.iter().map(|p| p.freq_cy_per_px).collect();
     let m: Vec<f64> = pts.iter().map(|p| p.mrtd_k).collect();
-    let top = m
-        .iter()
-        .copied()
-        .fold(0.0, f64::max)
-        .min(20.0 * m[0].max(1e-9));
-    plot::render_line_plot(&LinePlot {
-        title: "MRTD (FLIR92 form)",
-        x_label: "bar frequency (cycles/pixel)",
-        y_label: "MRTD (K)",
-        series: vec![Series {
-            label: "analytic",
-            x: &f,
-            y: &m,
-        }],
-        markers: vec![Marker {
-            label: "Nyquist",
-            x: 0.5,
-        }],
-        y_range: Some((0.0, top)),
-        size_px: SIZE_PX,
-    })
+    plot::render_line_plot_with(
+        &LinePlot {
+            title: "MRTD (FLIR92 form)",
+            x_label: "bar frequency (cycles/pixel)",
+            y_label: "MRTD (K)",
+            series: vec![Series {
+                label: "analytic",
+                x: &f,
+                y: &m,
+            }],
+            markers: vec![Marker {
+                label: "Nyquist",
+                x: 0.5,
+            }],
+            y_range: None,
+            size_px: SIZE_PX,
+        },
+        &PlotOptions {
+            log_y: true,
+            x_range: Some((0.0, 0.5)),
+            ..Default::default()
+        },
+    )
     .map(Some)
 }
+
+/// Span of the MRTD plot: its largest value drawn over its lowest.
+const MRTD_SPAN: f64 = 1000.0;
 
 /// `niirs.png`: GIQE 5 NIIRS against range (reflective sensors; `None` otherwise).
 pub fn niirs_png(an: &Analytic) -> Result<Option<Vec<u8>>> {
