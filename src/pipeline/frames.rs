@@ -229,7 +229,7 @@ fn sequential(
             reader,
             job.n_frames,
             |b| progress(b, total),
-            |g, e| sink.expose(g, &e),
+            |g, e, earlier| sink.expose(g, &e, Some(earlier)),
         )?;
         add_stats(&mut done.stats, &s);
         sink.next = 1;
@@ -435,15 +435,21 @@ impl<'a> Sink<'a> {
             1
         };
         for g in f..f + repeats {
-            self.expose(g, &e)?;
+            self.expose(g, &e, None)?;
         }
         self.next = f + 1;
         Ok(())
     }
 
     /// Exposes frame `g` (the next frame to hand on) of mean image `e`, calibrates it and
-    /// hands it to the consumer.
-    fn expose(&mut self, g: usize, e: &Array2<f64>) -> Result<()> {
+    /// hands it to the consumer. `earlier(k)` images frame `k` of the sequence, for the
+    /// replay of a piece's persistence (a static scene seen by a moving camera).
+    fn expose(
+        &mut self,
+        g: usize,
+        e: &Array2<f64>,
+        earlier: Option<&dyn Fn(usize) -> Result<Array2<f64>>>,
+    ) -> Result<()> {
         let job = self.job;
         let e = finite_mean(e, g, &job.options.input_name)?;
         let exposure = match &mut self.exposure {
@@ -458,7 +464,7 @@ impl<'a> Sink<'a> {
                     })?;
                 let mut x = Exposure::new(job.sensor, e, job.options.seed, clock_frames)?;
                 if x.has_memory() && first > 0 {
-                    self.replay_before(&mut x, e)?;
+                    self.replay_before(&mut x, e, earlier)?;
                 }
                 self.exposure.insert(x)
             }
@@ -485,21 +491,40 @@ impl<'a> Sink<'a> {
     /// Steps the focal plane's memory over the frames before the run's first
     /// (`options.first_frame` > 0: a piece of a sequence split across processes), so its
     /// state is that of one run over the whole sequence. RTS pixels and drift depend only
-    /// on the clock; persistence also on the earlier frames' mean images, which this run
-    /// has only when every frame sees the same image (a static scene and a still camera:
-    /// `e`, the first frame's).
-    fn replay_before(&self, x: &mut Exposure, e: &Array2<f64>) -> Result<()> {
+    /// on the clock; persistence also on the earlier frames' mean images: `e`, the first
+    /// frame's, when every frame sees the same image (a static scene, a still camera);
+    /// `earlier(k)` for a static scene seen by a moving camera (each earlier frame imaged
+    /// as it moved). A 4-D input's piece holds only its own frames, so persistence there
+    /// is an error.
+    fn replay_before(
+        &self,
+        x: &mut Exposure,
+        e: &Array2<f64>,
+        earlier: Option<&dyn Fn(usize) -> Result<Array2<f64>>>,
+    ) -> Result<()> {
         let job = self.job;
+        let first = job.options.first_frame;
         let same_image = job.input_frames == 1 && job.stage.motion().is_none();
-        if job.sensor.config().detector.persistence.is_some() && !same_image {
+        let persistence = job.sensor.config().detector.persistence.is_some();
+        if !persistence || same_image {
+            for f in 0..first {
+                x.replay(e, f)?;
+            }
+            return Ok(());
+        }
+        let Some(earlier) = earlier.filter(|_| job.input_frames == 1) else {
             return Err(Error::param(
                 "first_frame",
-                job.options.first_frame,
-                "0 with [detector.persistence] on a moving or 4-D sequence: the trapped charge depends on every earlier frame's image, which a piece starting later does not image (run the sequence in one piece, e.g. frames_per_task >= the frame count)",
+                first,
+                "0 with [detector.persistence] on a 4-D (time-varying) input: the trapped charge depends on every earlier frame's image, which a piece of the input does not hold (run the sequence in one piece, e.g. frames_per_task >= the frame count)",
             ));
-        }
-        for f in 0..job.options.first_frame {
-            x.replay(e, f)?;
+        };
+        for f in 0..first {
+            let k = usize::try_from(f).map_err(|_| {
+                Error::param("first_frame", first, "a frame index that fits in memory")
+            })?;
+            let image = earlier(k)?;
+            x.replay(finite_mean(&image, k, &job.options.input_name)?, f)?;
         }
         Ok(())
     }

@@ -8,6 +8,7 @@ use num_complex::Complex64;
 
 use crate::error::Result;
 use crate::imaging::fft::FftPrecision;
+use crate::imaging::motion::FrameMotion;
 use crate::imaging::{Imager, ImagingStats, Sampling, BANDS_PER_CHUNK};
 use crate::io::CubeReader;
 use crate::scene::{CubeMeta, Geometry};
@@ -205,14 +206,18 @@ impl ImagingStage {
     /// A static scene seen by a moving camera: the scene (frame 0 of `reader`) is imaged
     /// once up to its band-summed spectrum, then every one of `frames` frames is sampled
     /// from it as it moved ([`Imager::detector_image_moving`]: one multiplication and one
-    /// inverse transform per frame and channel) and handed to `each(frame, mean image)`
-    /// in frame order. Without motion, every frame is the still image.
+    /// inverse transform per frame and channel) and handed to `each(frame, mean image,
+    /// earlier)` in frame order. Without motion, every frame is the still image.
+    ///
+    /// `earlier(k)` images frame `k` of the *sequence* (counted from its start, not from
+    /// the run's first frame) the same way: a piece of a sequence replays the focal plane's
+    /// persistence over the frames before its first with it.
     pub fn static_sequence(
         &self,
         reader: &mut dyn CubeReader,
         frames: usize,
         mut progress: impl FnMut(usize),
-        mut each: impl FnMut(usize, Array2<f64>) -> Result<()>,
+        mut each: impl FnMut(usize, Array2<f64>, &dyn Fn(usize) -> Result<Array2<f64>>) -> Result<()>,
     ) -> Result<ImagingStats> {
         let mut stats = ImagingStats::default();
         let mut spectra = Vec::with_capacity(self.imagers.len());
@@ -224,26 +229,33 @@ impl ImagingStage {
             add_stats(&mut stats, &s);
             spectra.push(spec);
         }
+        // The mean image of a frame that moved by `moved`.
+        let image_moved =
+            |moved: Option<FrameMotion>, scratch: &mut Vec<Complex64>| -> Result<Array2<f64>> {
+                let mut planes = Vec::with_capacity(self.imagers.len());
+                for (im, spec) in self.imagers.iter().zip(&spectra) {
+                    planes.push(match moved.as_ref().filter(|m| !m.is_identity()) {
+                        Some(m) => im.detector_image_moving(spec, m, scratch)?,
+                        None => {
+                            scratch.clear();
+                            scratch.extend_from_slice(spec);
+                            im.detector_image_transposed(scratch)
+                        }
+                    });
+                }
+                self.mosaic(planes)
+            };
         // Frame g's mean image and the seconds it took.
         let image = |g: usize, scratch: &mut Vec<Complex64>| -> (Result<Array2<f64>>, f64) {
             let t0 = std::time::Instant::now();
-            let moved = self.motion.as_ref().map(|m| m.frame(g));
-            let mut planes = Vec::with_capacity(self.imagers.len());
-            for (im, spec) in self.imagers.iter().zip(&spectra) {
-                let plane = match moved.as_ref().filter(|m| !m.is_identity()) {
-                    Some(m) => im.detector_image_moving(spec, m, scratch),
-                    None => {
-                        scratch.clear();
-                        scratch.extend_from_slice(spec);
-                        Ok(im.detector_image_transposed(scratch))
-                    }
-                };
-                match plane {
-                    Ok(p) => planes.push(p),
-                    Err(e) => return (Err(e), t0.elapsed().as_secs_f64()),
-                }
-            }
-            (self.mosaic(planes), t0.elapsed().as_secs_f64())
+            let e = image_moved(self.motion.as_ref().map(|m| m.frame(g)), scratch);
+            (e, t0.elapsed().as_secs_f64())
+        };
+        let earlier = |k: usize| {
+            image_moved(
+                self.motion.as_ref().map(|m| m.sequence_frame(k)),
+                &mut Vec::new(),
+            )
         };
         // Frame g + 1 is imaged on a thread of its own while `each` exposes frame g on
         // this one (the imaging reads only the spectra and immutable tables, so the image
@@ -261,7 +273,7 @@ impl ImagingStage {
                     let (image, scratch) = (&image, &mut scratch);
                     sc.spawn(move || image(g + 1, scratch))
                 });
-                let exposed = each(g, current);
+                let exposed = each(g, current, &earlier);
                 let imaged = worker.map(|w| match w.join() {
                     Ok(r) => r,
                     Err(panic) => std::panic::resume_unwind(panic),

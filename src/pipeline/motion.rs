@@ -181,10 +181,11 @@ impl SequenceMotion {
         otf.with_motion_smear(Some((r[0].hypot(r[1]) * t, r[1].atan2(r[0]))))
     }
 
-    /// The path of detector row `row` during frame `g` of the run, and its displacement
-    /// from the reference (rad): the window's mean, less the drift a rendered input holds.
-    fn window(&self, g: usize, row: usize) -> (WindowPath, [f64; 2]) {
-        let (t0, t1) = self.clock.row_window_s(self.first_frame + g, row);
+    /// The path of detector row `row` during frame `k` of the sequence (not of the run),
+    /// and its displacement from the reference (rad): the window's mean, less the drift a
+    /// rendered input holds.
+    fn window(&self, k: usize, row: usize) -> (WindowPath, [f64; 2]) {
+        let (t0, t1) = self.clock.row_window_s(k, row);
         let w = self.los.window(t0, t1, self.path_tolerance_rad);
         let dt = 0.5 * (t0 + t1) - self.reference_s;
         let d = [
@@ -194,15 +195,22 @@ impl SequenceMotion {
         (w, d)
     }
 
-    /// Frame `g`'s motion for the engine.
+    /// Frame `g`'s motion for the engine (frame `first_frame + g` of the sequence).
     pub fn frame(&self, g: usize) -> FrameMotion {
+        self.sequence_frame(self.first_frame + g)
+    }
+
+    /// The motion of frame `k` of the sequence, counted from the sequence start, for any
+    /// `k` up to the run's last frame: a piece of a sequence (`first_frame` > 0) images the
+    /// frames before its first with it to replay the focal plane's persistence.
+    pub fn sequence_frame(&self, k: usize) -> FrameMotion {
         if self.clock.line_time_s().is_none() {
-            let (w, d) = self.window(g, 0);
+            let (w, d) = self.window(k, 0);
             let blur = (!self.blur_in_cascade).then_some(w);
             return FrameMotion::uniform(self.rows, d, blur);
         }
         let (windows, shifts): (Vec<WindowPath>, Vec<[f64; 2]>) =
-            (0..self.rows).map(|r| self.window(g, r)).unzip();
+            (0..self.rows).map(|r| self.window(k, r)).unzip();
         if self.blur_in_cascade {
             return FrameMotion {
                 groups: vec![MotionGroup {
@@ -245,7 +253,7 @@ impl SequenceMotion {
         for g in 0..frames {
             for &r in &rows {
                 let k = self.first_frame + g;
-                let (w, d) = self.window(g, r);
+                let (w, d) = self.window(k, r);
                 out.push(TruthRow {
                     frame: k as u64,
                     rows: if rolling { (r, r) } else { (0, self.rows - 1) },
