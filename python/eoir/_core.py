@@ -365,6 +365,7 @@ def run(
     calibration_temperatures_k=None,
     first_frame: int = 0,
     sequence_frames: Optional[int] = None,
+    time_varying: bool = False,
     assess: bool = False,
     as_dataset: bool = True,
 ):
@@ -423,6 +424,11 @@ def run(
         (:func:`eoir.dask.run_frames` does). A moving camera is a sensor with a
         ``[clock]`` and motion (``docs/motion.md``; MultimIR's
         ``sequence="aircraft"`` option drifts 2 px per frame).
+    time_varying : bool, default False
+        The input is a time-varying (rendered) sequence even when it holds one frame: a
+        one-frame piece of a 4-D sequence (:func:`eoir.dask.run_frames` passes it). A
+        one-frame input is otherwise a static scene, which a moving camera sweeps over
+        frame after frame; a rendered frame already shows the platform's motion.
     assess : bool, default False
         Add the sensor's analytic figures of merit (``eoir run --assess``) to the report
         as ``report["figures_of_merit"]``: the same dict as ``eoir.assess(sensor,
@@ -523,6 +529,7 @@ def run(
         calibration_temperatures_k=temps,
         sequence_frames=sequence_frames,
         assess=bool(assess),
+        time_varying=bool(time_varying),
     )
     squeeze = data.ndim == 3 and frames <= 1
     result = RunResult(d, squeeze)

@@ -61,6 +61,8 @@ def _run_block(block, sensor, wavelength_um, fov_deg, seed, product, range_m, un
         calibrate=calibrate,
         first_frame=int(first),
         sequence_frames=None if total is None else int(total),
+        # A chunk of one frame is still a rendered frame, not a static scene.
+        time_varying=True,
         range_m=range_m,
         units=units,
         nuc_degree=nuc_degree,

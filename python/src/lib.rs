@@ -544,7 +544,7 @@ mod num_zero {
 #[pyo3(signature = (sensor, radiance, wavelength_um, fov_deg, seed=1, frames=1,
     calibrate=true, nuc_degree=1, first_frame=0, range_m=None, units="W m-2 sr-1 um-1",
     fwhm_um=None, input_name="numpy array", calibration_temperatures_k=None,
-    sequence_frames=None, assess=false))]
+    sequence_frames=None, assess=false, time_varying=false))]
 #[allow(clippy::too_many_arguments)]
 fn run<'py>(
     py: Python<'py>,
@@ -564,6 +564,7 @@ fn run<'py>(
     calibration_temperatures_k: Option<Vec<f64>>,
     sequence_frames: Option<u64>,
     assess: bool,
+    time_varying: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let scale = parse_scale(units)?;
     let units = scale.units;
@@ -609,6 +610,7 @@ fn run<'py>(
         frames,
         first_frame,
         sequence_frames,
+        time_varying: time_varying || nf > 1,
         input_name: source.clone(),
         calibration: calibrate
             .then(|| {

@@ -29,6 +29,20 @@ def test_run_frames_any_chunking_equals_run(small_sensor, small_scene):
     np.testing.assert_array_equal(e.compute(scheduler="threads"), ref.electrons_mean)
 
 
+def test_run_frames_of_a_moving_camera_any_chunking_equals_run(small_scene):
+    """A chunk of one frame is a rendered frame (``time_varying``), not a static scene the
+    moving camera sweeps over: every chunking equals one run."""
+    s = eoir.load_sensor("multimir", options={"sequence": "aircraft"},
+                         overrides={"detector.rows": 32, "detector.cols": 40})
+    c = small_scene
+    seq = frames(c, 3)
+    ref = eoir.run(s, seq, c.wavelength_um, c.fov_deg, seed=5, calibrate=False, range_m=c.range_m)
+    for chunk in (1, 2):
+        x = da.from_array(seq, chunks=(chunk, -1, -1, -1))
+        dn = edask.run_frames(s, x, c.wavelength_um, c.fov_deg, seed=5, range_m=c.range_m)
+        np.testing.assert_array_equal(dn.compute(scheduler="threads"), ref.dn)
+
+
 def test_run_frames_temperature_equals_run(small_sensor, small_scene):
     """Calibration is rebuilt per chunk from the same sensor and seed: the same NUC, so the
     same temperatures as one calibrated run."""

@@ -77,8 +77,12 @@ pub(super) struct FrameJob<'a> {
     pub sensor: &'a Sensor,
     /// The run's options.
     pub options: &'a RunOptions,
-    /// Frames of the input (1 = a static scene, imaged once).
+    /// Frames of the input (1 = a static scene, imaged once, unless `rendered`).
     pub input_frames: usize,
+    /// The input is time-varying (several frames, or a one-frame piece of a 4-D input,
+    /// [`RunOptions::time_varying`]): each frame is imaged from its own planes, never
+    /// from another frame's.
+    pub rendered: bool,
     /// Frames to produce.
     pub n_frames: usize,
     /// Bytes the run needs with one frame in flight ([`crate::limits::check_run`]).
@@ -223,7 +227,7 @@ fn sequential(
 ) -> Result<()> {
     let active = job.stage.bands_used();
     let total = job.input_frames * active;
-    if job.input_frames == 1 && job.stage.motion().is_some() {
+    if !job.rendered && job.stage.motion().is_some() {
         // A static scene seen by a moving camera: one spectrum, one inverse per frame.
         let s = job.stage.static_sequence(
             reader,
@@ -504,7 +508,7 @@ impl<'a> Sink<'a> {
     ) -> Result<()> {
         let job = self.job;
         let first = job.options.first_frame;
-        let same_image = job.input_frames == 1 && job.stage.motion().is_none();
+        let same_image = !job.rendered && job.stage.motion().is_none();
         let persistence = job.sensor.config().detector.persistence.is_some();
         if !persistence || same_image {
             for f in 0..first {
@@ -512,7 +516,7 @@ impl<'a> Sink<'a> {
             }
             return Ok(());
         }
-        let Some(earlier) = earlier.filter(|_| job.input_frames == 1) else {
+        let Some(earlier) = earlier.filter(|_| !job.rendered) else {
             return Err(Error::param(
                 "first_frame",
                 first,

@@ -89,6 +89,12 @@ pub struct RunOptions {
     /// so pieces run apart (Dask) see the same trajectory as one run when each is told the
     /// total.
     pub sequence_frames: Option<u64>,
+    /// The input is a time-varying (rendered) sequence even when it holds one frame: a
+    /// one-frame piece of a 4-D input (e.g. a Dask chunk of one frame). A one-frame input
+    /// is otherwise a static scene, which a moving camera sweeps over and a piece replays
+    /// from; a rendered frame already shows the platform's motion, and the frames before
+    /// a piece are not in it. A run of a multi-frame input is always time-varying.
+    pub time_varying: bool,
 }
 
 impl Default for RunOptions {
@@ -104,6 +110,7 @@ impl Default for RunOptions {
             fft_precision: Default::default(),
             frames_in_flight: None,
             sequence_frames: None,
+            time_varying: false,
         }
     }
 }
@@ -386,11 +393,16 @@ fn add_late_warnings(readers: Vec<String>, model: &[String], warnings: &mut Vec<
     }
 }
 
-/// Frames a run produces: every frame of a sequence, or `requested` exposures of a static
-/// (single-frame) input. `requested = 0` is an error, never quietly one frame; so is a
+/// Frames a run produces: every frame of a sequence (`rendered`: a time-varying input,
+/// whatever its frame count), or `requested` exposures of a static (single-frame) input. `requested = 0` is an error, never quietly one frame; so is a
 /// `first_frame` whose last frame index would pass 2⁶⁴ − 1 (the noise streams are keyed
 /// by it and must not wrap onto frame 0's).
-fn frame_count(input_frames: usize, requested: usize, first_frame: u64) -> Result<usize> {
+fn frame_count(
+    input_frames: usize,
+    rendered: bool,
+    requested: usize,
+    first_frame: u64,
+) -> Result<usize> {
     if requested == 0 {
         return Err(Error::param(
             "frames",
@@ -398,11 +410,7 @@ fn frame_count(input_frames: usize, requested: usize, first_frame: u64) -> Resul
             "at least 1 (exposures of a static scene; a sequence runs all its frames)",
         ));
     }
-    let n = if input_frames == 1 {
-        requested
-    } else {
-        input_frames
-    };
+    let n = if rendered { input_frames } else { requested };
     if first_frame.checked_add(n as u64).is_none() {
         return Err(Error::param(
             "first_frame",
@@ -485,8 +493,9 @@ pub fn run_streaming(
     warnings.extend(sensor.warnings().iter().cloned());
     let t_setup = Instant::now();
     let input_frames = reader.frames();
-    let n_frames = frame_count(input_frames, options.frames, options.first_frame)?;
-    let motion = SequenceMotion::new(sensor, n_frames, input_frames, options)?;
+    let rendered = input_frames > 1 || options.time_varying;
+    let n_frames = frame_count(input_frames, rendered, options.frames, options.first_frame)?;
+    let motion = SequenceMotion::new(sensor, n_frames, rendered, options)?;
     let imaging = ImagingStage::new(sensor, &meta, &geometry, options, motion)?;
     let setup_s = t_setup.elapsed().as_secs_f64();
     warnings.extend(setup_warnings(&imaging, &meta, sensor, n_frames));
@@ -499,6 +508,7 @@ pub fn run_streaming(
         sensor,
         options,
         input_frames,
+        rendered,
         n_frames,
         run_bytes,
     };

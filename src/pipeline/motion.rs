@@ -73,14 +73,15 @@ impl SequenceMotion {
     /// `options.seed`'s own stream; `None` for a still camera: no `[clock]` section, or
     /// nothing moves.
     ///
-    /// A time-varying input (`input_frames > 1`) was rendered by its scene generator with
+    /// A time-varying input (`rendered`: more than one frame, or
+    /// [`super::RunOptions::time_varying`]) was rendered by its scene generator with
     /// the platform already moving: `[motion]` then blurs each frame as before but does
     /// not also drift the frames (only `[trajectory]` moves them); without a
     /// `[trajectory]` such an input is imaged as by a still camera.
     pub fn new(
         sensor: &Sensor,
         frames: usize,
-        input_frames: usize,
+        rendered: bool,
         options: &super::RunOptions,
     ) -> Result<Option<Self>> {
         let (first_frame, seed) = (options.first_frame, options.seed);
@@ -88,7 +89,6 @@ impl SequenceMotion {
         let Some(clock_cfg) = config.clock.as_ref() else {
             return Ok(None);
         };
-        let rendered = input_frames > 1;
         if rendered && config.trajectory.is_none() {
             return Ok(None);
         }

@@ -321,3 +321,43 @@ fn a_persistence_ghost_is_the_charge_the_traps_release() {
         "excess {excess_dn} DN, released {released} e- × K {k_gain}"
     );
 }
+
+/// A 4-D input cut into one-frame pieces (Dask chunks of one frame, `time_varying`):
+/// each piece is a rendered frame, not a static scene for the moving camera to sweep,
+/// so the pieces equal one run over the sequence; with persistence a later piece is
+/// refused (its earlier frames are not in it) instead of replaying its own image.
+#[test]
+fn one_frame_pieces_of_a_4d_input_are_rendered_frames() {
+    let sets = [
+        "clock.frame_rate_hz=50",
+        "motion.enabled=true",
+        "motion.velocity_m_s=12.5",
+    ];
+    let s = sensor(&sets, |_| {});
+    let mut c0 = scene(&s);
+    c0.data
+        .slice_mut(s![.., 10..16, 12..18])
+        .mapv_inplace(|v| v * 20.0);
+    let mut c1 = c0.clone();
+    c1.data
+        .slice_mut(s![.., 10..16, 13..19])
+        .mapv_inplace(|v| v * 2.0);
+    let mut whole_reader = MemoryCube::sequence(vec![c0.clone(), c1.clone()], None).unwrap();
+    let whole = pipeline::run(&s, &mut whole_reader, &options(2, 0, None), |_, _| {}).unwrap();
+    let piece = |cube: &Cube, first: u64, sensor: &Sensor| {
+        let o = RunOptions {
+            time_varying: true,
+            ..options(1, first, Some(2))
+        };
+        pipeline::run(sensor, &mut MemoryCube::new(cube.clone()), &o, |_, _| {})
+    };
+    let mut pieces = dn(&piece(&c0, 0, &s).unwrap());
+    pieces.extend(dn(&piece(&c1, 1, &s).unwrap()));
+    assert_eq!(pieces, dn(&whole));
+    // The same frame as a static scene is swept by the camera: a different image.
+    let swept = run(&s, &c1, &options(1, 1, Some(2))).unwrap();
+    assert_ne!(dn(&swept)[0], dn(&whole)[1]);
+    let traps = sensor(&sets, with_memory);
+    let err = piece(&c1, 1, &traps).unwrap_err().to_string();
+    assert!(err.contains("persistence") && err.contains("4-D"), "{err}");
+}
