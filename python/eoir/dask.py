@@ -97,7 +97,8 @@ def run_frames(
     Equals ``eoir.run(sensor, radiance.compute(), wavelength_um, fov_deg, seed=seed)`` bit
     for bit (same product), whatever the chunking and the scheduler. A sensor whose gain
     comes from the scene (``sensor.gain_from_scene``) sets it from the first frame of each
-    run, so it is accepted only as one chunk.
+    run, so it is accepted only as one chunk; so is a sensor with persistence
+    (``sensor.has_persistence``), whose frames depend on every earlier frame's image.
     """
     _check_product(product)
     radiance = da.asarray(radiance)
@@ -112,6 +113,12 @@ def run_frames(
             f"sensor `{sensor.name}` sets its gain from the first frame's mean signal "
             "([detector.auto_gain] reference = \"scene_mean\"): chunks would each set their own; "
             "fix the gain (overrides={'detector.gain_dn_per_e': K}, without auto_gain) or use one chunk"
+        )
+    if sensor.has_persistence and len(radiance.chunks[0]) > 1:
+        raise ValueError(
+            f"sensor `{sensor.name}` has [detector.persistence]: a frame's trapped charge depends "
+            "on every earlier frame's image, which a later chunk of a 4-D input does not hold; "
+            "use one chunk along frames (radiance.rechunk({0: -1})) for a bit-identical result"
         )
     wl = [float(w) for w in np.asarray(wavelength_um, dtype=np.float64).ravel()]
     fov = (float(fov_deg[0]), float(fov_deg[1]))

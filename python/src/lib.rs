@@ -245,6 +245,13 @@ impl PySensor {
     fn gain_from_scene(&self) -> PyResult<bool> {
         guarded(|| Ok(self.inner.detector().scene_mean_gain_fraction().is_some()))
     }
+    /// Whether the focal plane traps charge from frame to frame (`[detector.persistence]`):
+    /// a frame then depends on every earlier frame's image, so a piece of a 4-D input
+    /// cannot start after the sequence start.
+    #[getter]
+    fn has_persistence(&self) -> bool {
+        self.inner.config().detector.persistence.is_some()
+    }
     /// Problems worth knowing about (assumed values, odd combinations).
     #[getter]
     fn warnings(&self) -> Vec<String> {

@@ -63,6 +63,17 @@ def test_scene_gain_sensor_needs_one_chunk():
         edask.run_frames(s, x, [0.5, 0.6, 0.7], (1.0, 1.0))
 
 
+def test_persistence_sensor_needs_one_chunk(small_scene):
+    s = eoir.load_sensor("multimir", overrides={
+        "detector.rows": 32, "detector.cols": 40, "clock.frame_rate_hz": 50,
+        "detector.persistence.tau_s": [0.01], "detector.persistence.density": [0.02]})
+    assert s.has_persistence
+    c = small_scene
+    x = da.from_array(frames(c, 4), chunks=(2, -1, -1, -1))
+    with pytest.raises(ValueError, match="persistence"):
+        edask.run_frames(s, x, c.wavelength_um, c.fov_deg, range_m=c.range_m)
+
+
 def test_run_frames_rejects_bad_input(small_sensor, small_scene):
     c = small_scene
     with pytest.raises(ValueError, match="product"):
