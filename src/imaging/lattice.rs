@@ -84,16 +84,32 @@ pub fn zero_gap(col: &[Complex64]) -> (usize, usize) {
     let rows = col.len();
     let split = (rows / 2 + 1).min(rows);
     let zero = |z: &Complex64| z.re == 0.0 && z.im == 0.0;
+    // Whole runs of GAP_RUN samples first, each tested at once (the bits of ±0 shifted
+    // left by one are 0, and of no other number), then sample by sample.
+    let all_zero = |run: &[Complex64]| {
+        run.iter().fold(0u64, |acc, z| {
+            acc | ((z.re.to_bits() | z.im.to_bits()) << 1)
+        }) == 0
+    };
     let mut a = split;
+    while a >= GAP_RUN && all_zero(&col[a - GAP_RUN..a]) {
+        a -= GAP_RUN;
+    }
     while a > 0 && zero(&col[a - 1]) {
         a -= 1;
     }
     let mut b = split;
+    while b + GAP_RUN <= rows && all_zero(&col[b..b + GAP_RUN]) {
+        b += GAP_RUN;
+    }
     while b < rows && zero(&col[b]) {
         b += 1;
     }
     (a, b)
 }
+
+/// Samples [`zero_gap`] tests at once.
+const GAP_RUN: usize = 8;
 
 /// `e^{2πi u s/cols}`, the factor of a shift by `s` samples at column frequency u of a
 /// `cols`-long real row; on an even row's Nyquist bin the average of the ± ramps,
@@ -358,8 +374,12 @@ impl LatticeInverse {
                         let p = shift_factor(cols, src, x_shift);
                         let start = self.unit_x[(u * c) % cols];
                         if mirror {
-                            for (v, d) in dst.iter_mut().enumerate() {
-                                *d += (y[(my - v) % my] * p).conj() * start;
+                            // dst[v] += conj(y[(my − v) mod my]·p)·start: bin 0 from bin 0,
+                            // then the rest reversed.
+                            let (d0, rest) = dst.split_first_mut().expect("my > 0");
+                            *d0 += (y[0] * p).conj() * start;
+                            for (d, z) in rest.iter_mut().zip(y[1..].iter().rev()) {
+                                *d += (z * p).conj() * start;
                             }
                         } else {
                             let g = p * start;
@@ -757,6 +777,29 @@ mod tests {
         // A zero elsewhere is not part of the gap.
         let col = [z, o, o, o, z, o, o];
         assert_eq!(zero_gap(&col), (4, 5));
+        // Long columns (whole runs tested at once): every gap edge position on both sides,
+        // −0 counted as zero, the smallest subnormal and a lone nonzero imaginary part not.
+        let m = Complex64::new(-0.0, 0.0);
+        let tiny = Complex64::new(f64::from_bits(1), 0.0);
+        let im = Complex64::new(0.0, -0.0);
+        let im1 = Complex64::new(0.0, 1e-300);
+        for rows in [40usize, 41] {
+            let split = rows / 2 + 1;
+            for a in 0..=split {
+                for b in split..=rows {
+                    for edge in [o, tiny, im1] {
+                        let col: Vec<Complex64> = (0..rows)
+                            .map(|v| match v {
+                                v if (a..b).contains(&v) => [z, m, im][v % 3],
+                                v if v + 1 == a || v == b => edge,
+                                _ => [o, z][v % 2],
+                            })
+                            .collect();
+                        assert_eq!(zero_gap(&col), (a, b), "rows {rows} gap {a}..{b}");
+                    }
+                }
+            }
+        }
     }
 
     /// The AVX2 build of the column fold gives the portable one's values to the bit (with
