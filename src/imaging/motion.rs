@@ -304,19 +304,22 @@ impl Segments {
                 let mut ei: [f64; LANES] = std::array::from_fn(|l| es[l].im);
                 let mut av = as_;
                 // sin(πa)/(πa) of every lane from e^{iπa}'s imaginary part: near a = 0 the
-                // ratio loses digits and the series is exact to 1e-16 there. Both are
-                // computed and one selected (no branch: the lanes vectorise).
+                // ratio loses digits and the series is exact to 1e-16 there. The ratio of
+                // every lane at once (one vector division), the series only in the rare
+                // chunks with a lane that needs it (its two divisions would otherwise
+                // triple the cost).
                 let sinc = |ei: &[f64; LANES], av: &[f64; LANES]| -> [f64; LANES] {
-                    std::array::from_fn(|l| {
-                        let x = PI * av[l];
-                        let series = 1.0 - x * x / 6.0 * (1.0 - x * x / 20.0);
-                        let ratio = ei[l] / x;
-                        if x.abs() < 1e-3 {
-                            series
-                        } else {
-                            ratio
+                    let x: [f64; LANES] = std::array::from_fn(|l| PI * av[l]);
+                    let mut s: [f64; LANES] = std::array::from_fn(|l| ei[l] / x[l]);
+                    let small = x.map(|x| x.abs() < 1e-3);
+                    if small.iter().fold(false, |any, &b| any | b) {
+                        for l in 0..LANES {
+                            if small[l] {
+                                s[l] = 1.0 - x[l] * x[l] / 6.0 * (1.0 - x[l] * x[l] / 20.0);
+                            }
                         }
-                    })
+                    }
+                    s
                 };
                 // A phase that does not advance (m_y = 0, e.g. a single segment, whose
                 // midpoint is the path's mean): the recurrence would multiply by (1, ±0)
