@@ -84,16 +84,32 @@ pub fn zero_gap(col: &[Complex64]) -> (usize, usize) {
     let rows = col.len();
     let split = (rows / 2 + 1).min(rows);
     let zero = |z: &Complex64| z.re == 0.0 && z.im == 0.0;
+    // Whole runs of GAP_RUN samples first, each tested at once (the bits of ±0 shifted
+    // left by one are 0, and of no other number), then sample by sample.
+    let all_zero = |run: &[Complex64]| {
+        run.iter().fold(0u64, |acc, z| {
+            acc | ((z.re.to_bits() | z.im.to_bits()) << 1)
+        }) == 0
+    };
     let mut a = split;
+    while a >= GAP_RUN && all_zero(&col[a - GAP_RUN..a]) {
+        a -= GAP_RUN;
+    }
     while a > 0 && zero(&col[a - 1]) {
         a -= 1;
     }
     let mut b = split;
+    while b + GAP_RUN <= rows && all_zero(&col[b..b + GAP_RUN]) {
+        b += GAP_RUN;
+    }
     while b < rows && zero(&col[b]) {
         b += 1;
     }
     (a, b)
 }
+
+/// Samples [`zero_gap`] tests at once.
+const GAP_RUN: usize = 8;
 
 /// `e^{2πi u s/cols}`, the factor of a shift by `s` samples at column frequency u of a
 /// `cols`-long real row; on an even row's Nyquist bin the average of the ± ramps,
@@ -140,7 +156,12 @@ fn fold_column(
     fold_column_portable(col, h, alias, ramp, gap, y)
 }
 
-/// [`fold_column`] compiled for AVX2.
+/// [`fold_column`] with AVX2 vectors, two complex samples per register: each complex
+/// product is `(a·Re b) ∓± (swap(a)·Im b)` (`vaddsubpd`), which computes
+/// `a.re·b.re − a.im·b.im` and `a.im·b.re + a.re·b.im`, the very operations of
+/// `Complex64`'s product (the sum of the imaginary part in the other order, which IEEE
+/// addition does not see), so the same values as [`fold_column_portable`] to the bit
+/// (test); no fused multiply-add is formed (FMA is not enabled).
 ///
 /// # Safety
 /// The CPU must support AVX2 (`is_x86_feature_detected!("avx2")`).
@@ -154,7 +175,69 @@ unsafe fn fold_column_avx2(
     gap: (usize, usize),
     y: &mut [Complex64],
 ) {
-    fold_column_portable(col, h, alias, ramp, gap, y)
+    use std::arch::x86_64::*;
+    /// Two complex products at once (`[re0, im0, re1, im1]`).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn cmul(a: __m256d, b: __m256d) -> __m256d {
+        let b_re = _mm256_movedup_pd(b);
+        let b_im = _mm256_permute_pd(b, 0b1111);
+        let a_swap = _mm256_permute_pd(a, 0b0101);
+        _mm256_addsub_pd(_mm256_mul_pd(a, b_re), _mm256_mul_pd(a_swap, b_im))
+    }
+    let (rows, my) = (col.len(), y.len());
+    assert!(alias.len() >= rows && ramp.len() >= my && h.is_none_or(|h| h.len() >= rows));
+    y.fill(Complex64::new(0.0, 0.0));
+    let yp = y.as_mut_ptr() as *mut f64;
+    let cp = col.as_ptr() as *const f64;
+    let ap = alias.as_ptr() as *const f64;
+    let mut b0 = 0;
+    while b0 < rows {
+        let b1 = (b0 + my).min(rows);
+        for (s, e) in [(b0, gap.0.clamp(b0, b1)), (gap.1.clamp(b0, b1), b1)] {
+            if s >= e {
+                continue;
+            }
+            // Pairs of samples s + 2k (k < pairs), then the odd one left.
+            let pairs = (e - s) / 2;
+            // SAFETY (all pointer reads and writes below): samples s..e are inside `col`,
+            // `h` and `alias` (length ≥ rows ≥ e, asserted above), and s − b0..e − b0 inside
+            // `y` (e − b0 ≤ my).
+            let (c, a, d) = (cp.add(2 * s), ap.add(2 * s), yp.add(2 * (s - b0)));
+            match h {
+                Some(h) => {
+                    let hp = (h.as_ptr() as *const f64).add(2 * s);
+                    for k in 0..pairs {
+                        let o = 4 * k;
+                        let p = cmul(
+                            cmul(_mm256_loadu_pd(c.add(o)), _mm256_loadu_pd(hp.add(o))),
+                            _mm256_loadu_pd(a.add(o)),
+                        );
+                        _mm256_storeu_pd(d.add(o), _mm256_add_pd(_mm256_loadu_pd(d.add(o)), p));
+                    }
+                }
+                None => {
+                    for k in 0..pairs {
+                        let o = 4 * k;
+                        let p = cmul(_mm256_loadu_pd(c.add(o)), _mm256_loadu_pd(a.add(o)));
+                        _mm256_storeu_pd(d.add(o), _mm256_add_pd(_mm256_loadu_pd(d.add(o)), p));
+                    }
+                }
+            }
+            if (e - s) % 2 == 1 {
+                let v = e - 1;
+                let t = match h {
+                    Some(h) => col[v] * h[v] * alias[v],
+                    None => col[v] * alias[v],
+                };
+                y[v - b0] += t;
+            }
+        }
+        b0 += my;
+    }
+    for (d, p) in y.iter_mut().zip(ramp) {
+        *d *= p;
+    }
 }
 
 /// [`fold_column`] for any CPU.
@@ -358,8 +441,12 @@ impl LatticeInverse {
                         let p = shift_factor(cols, src, x_shift);
                         let start = self.unit_x[(u * c) % cols];
                         if mirror {
-                            for (v, d) in dst.iter_mut().enumerate() {
-                                *d += (y[(my - v) % my] * p).conj() * start;
+                            // dst[v] += conj(y[(my − v) mod my]·p)·start: bin 0 from bin 0,
+                            // then the rest reversed.
+                            let (d0, rest) = dst.split_first_mut().expect("my > 0");
+                            *d0 += (y[0] * p).conj() * start;
+                            for (d, z) in rest.iter_mut().zip(y[1..].iter().rev()) {
+                                *d += (z * p).conj() * start;
                             }
                         } else {
                             let g = p * start;
@@ -757,6 +844,29 @@ mod tests {
         // A zero elsewhere is not part of the gap.
         let col = [z, o, o, o, z, o, o];
         assert_eq!(zero_gap(&col), (4, 5));
+        // Long columns (whole runs tested at once): every gap edge position on both sides,
+        // −0 counted as zero, the smallest subnormal and a lone nonzero imaginary part not.
+        let m = Complex64::new(-0.0, 0.0);
+        let tiny = Complex64::new(f64::from_bits(1), 0.0);
+        let im = Complex64::new(0.0, -0.0);
+        let im1 = Complex64::new(0.0, 1e-300);
+        for rows in [40usize, 41] {
+            let split = rows / 2 + 1;
+            for a in 0..=split {
+                for b in split..=rows {
+                    for edge in [o, tiny, im1] {
+                        let col: Vec<Complex64> = (0..rows)
+                            .map(|v| match v {
+                                v if (a..b).contains(&v) => [z, m, im][v % 3],
+                                v if v + 1 == a || v == b => edge,
+                                _ => [o, z][v % 2],
+                            })
+                            .collect();
+                        assert_eq!(zero_gap(&col), (a, b), "rows {rows} gap {a}..{b}");
+                    }
+                }
+            }
+        }
     }
 
     /// The AVX2 build of the column fold gives the portable one's values to the bit (with
@@ -767,24 +877,29 @@ mod tests {
         if !std::arch::is_x86_feature_detected!("avx2") {
             return;
         }
-        let (rows, my) = (30usize, 10usize);
         let c = |t: usize, a: f64| Complex64::new((a * t as f64).sin(), (0.7 * a * t as f64).cos());
-        let col: Vec<Complex64> = (0..rows).map(|t| c(t, 1.3)).collect();
-        let h: Vec<Complex64> = (0..rows).map(|t| c(t, 0.37)).collect();
-        let alias: Vec<Complex64> = (0..rows).map(|t| c(t, 2.1)).collect();
-        let ramp: Vec<Complex64> = (0..my).map(|t| c(t, 0.9)).collect();
-        for gap in [(16usize, 16usize), (12, 21)] {
-            for blur in [None, Some(&h[..])] {
-                let mut a = vec![Complex64::new(0.0, 0.0); my];
-                let mut b = a.clone();
-                fold_column_portable(&col, blur, &alias, &ramp, gap, &mut a);
-                // SAFETY: AVX2 is present (checked above).
-                unsafe { fold_column_avx2(&col, blur, &alias, &ramp, gap, &mut b) };
-                for (x, y) in a.iter().zip(&b) {
-                    assert_eq!(
-                        (x.re.to_bits(), x.im.to_bits()),
-                        (y.re.to_bits(), y.im.to_bits())
-                    );
+        for (rows, my) in [(30usize, 10usize), (33, 11)] {
+            let col: Vec<Complex64> = (0..rows).map(|t| c(t, 1.3)).collect();
+            let h: Vec<Complex64> = (0..rows).map(|t| c(t, 0.37)).collect();
+            let alias: Vec<Complex64> = (0..rows).map(|t| c(t, 2.1)).collect();
+            let ramp: Vec<Complex64> = (0..my).map(|t| c(t, 0.9)).collect();
+            let split = rows / 2 + 1;
+            // No gap, and gaps whose pieces have odd and even lengths.
+            for gap in [(split, split), (12, 21), (13, 17), (11, 26)] {
+                for blur in [None, Some(&h[..])] {
+                    let mut a = vec![Complex64::new(0.0, 0.0); my];
+                    let mut b = a.clone();
+                    fold_column_portable(&col, blur, &alias, &ramp, gap, &mut a);
+                    // SAFETY: AVX2 is present (checked above).
+                    unsafe { fold_column_avx2(&col, blur, &alias, &ramp, gap, &mut b) };
+                    for (x, y) in a.iter().zip(&b) {
+                        assert_eq!(
+                            (x.re.to_bits(), x.im.to_bits()),
+                            (y.re.to_bits(), y.im.to_bits()),
+                            "{rows} rows, gap {gap:?}, blur {}",
+                            blur.is_some()
+                        );
+                    }
                 }
             }
         }

@@ -295,29 +295,63 @@ impl Segments {
                 }
                 let (ph_jump, e_jump) = (ph_step.powu(LANES as u32), e_step.powu(LANES as u32));
                 let a_jump = LANES as f64 * a_step;
-                let sinc = |e: Complex64, a: f64| {
-                    // Near a = 0 the ratio loses digits: the series is exact to 1e-16 there.
-                    // Both are computed and one selected (no branch: the lanes vectorise).
-                    let x = PI * a;
-                    let series = 1.0 - x * x / 6.0 * (1.0 - x * x / 20.0);
-                    let ratio = e.im / x;
-                    if x.abs() < 1e-3 {
-                        series
-                    } else {
-                        ratio
+                // The lanes held as arrays of real and imaginary parts (the same operations
+                // as `Complex64`'s, in the same order, so the same values to the bit): the
+                // compiler keeps each array in one vector register.
+                let mut pr: [f64; LANES] = std::array::from_fn(|l| phs[l].re);
+                let mut pi: [f64; LANES] = std::array::from_fn(|l| phs[l].im);
+                let mut er: [f64; LANES] = std::array::from_fn(|l| es[l].re);
+                let mut ei: [f64; LANES] = std::array::from_fn(|l| es[l].im);
+                let mut av = as_;
+                // sin(πa)/(πa) of every lane from e^{iπa}'s imaginary part: near a = 0 the
+                // ratio loses digits and the series is exact to 1e-16 there. The ratio of
+                // every lane at once (one vector division), the series only in the rare
+                // chunks with a lane that needs it (its two divisions would otherwise
+                // triple the cost).
+                let sinc = |ei: &[f64; LANES], av: &[f64; LANES]| -> [f64; LANES] {
+                    let x: [f64; LANES] = std::array::from_fn(|l| PI * av[l]);
+                    let mut s: [f64; LANES] = std::array::from_fn(|l| ei[l] / x[l]);
+                    let small = x.map(|x| x.abs() < 1e-3);
+                    if small.iter().fold(false, |any, &b| any | b) {
+                        for l in 0..LANES {
+                            if small[l] {
+                                s[l] = 1.0 - x[l] * x[l] / 6.0 * (1.0 - x[l] * x[l] / 20.0);
+                            }
+                        }
                     }
+                    s
                 };
+                // A phase that does not advance (m_y = 0, e.g. a single segment, whose
+                // midpoint is the path's mean): the recurrence would multiply by (1, ±0)
+                // and return every lane unchanged but for the sign of a zero part, which
+                // adds nothing to `out` (its sums start at +0), so it is skipped.
+                let still = ph_jump.re == 1.0 && ph_jump.im == 0.0;
+                let (jr, ji, qr, qi) = (ph_jump.re, ph_jump.im, e_jump.re, e_jump.im);
                 let mut chunks = out[start..end].chunks_exact_mut(LANES);
                 for c in &mut chunks {
+                    let s = sinc(&ei, &av);
                     for l in 0..LANES {
-                        c[l] += phs[l] * sinc(es[l], as_[l]);
-                        phs[l] *= ph_jump;
-                        es[l] *= e_jump;
-                        as_[l] += a_jump;
+                        c[l].re += pr[l] * s[l];
+                        c[l].im += pi[l] * s[l];
+                    }
+                    if !still {
+                        for l in 0..LANES {
+                            let r = pr[l];
+                            pr[l] = r * jr - pi[l] * ji;
+                            pi[l] = pi[l] * jr + r * ji;
+                        }
+                    }
+                    for l in 0..LANES {
+                        let r = er[l];
+                        er[l] = r * qr - ei[l] * qi;
+                        ei[l] = ei[l] * qr + r * qi;
+                        av[l] += a_jump;
                     }
                 }
+                let s = sinc(&ei, &av);
                 for (l, o) in chunks.into_remainder().iter_mut().enumerate() {
-                    *o += phs[l] * sinc(es[l], as_[l]);
+                    o.re += pr[l] * s[l];
+                    o.im += pi[l] * s[l];
                 }
             }
         }
@@ -676,6 +710,96 @@ mod tests {
                 );
                 let in_gap = gap.0 < gap.1 && (gap.0..gap.1).contains(&v);
                 assert_eq!(*x == marker, in_gap, "row {v}");
+            }
+        }
+    }
+
+    /// The column evaluation with its lanes split into real and imaginary arrays gives the
+    /// values of the plain `Complex64` recurrence (written out here: the phase and
+    /// e^{iπa} advanced by one complex multiplication per row, the sinc the ratio or the
+    /// series) to the bit, for a curved path, a single segment (whose phase does not
+    /// advance) and a path through the origin along x only, with and without a gap.
+    #[test]
+    fn the_column_is_the_complex_recurrence_to_the_bit() {
+        use std::f64::consts::PI;
+        fn reference(seg: &Segments, fx: f64, fy: &[f64], gap: (usize, usize)) -> Vec<Complex64> {
+            let rows = fy.len();
+            let split = rows / 2 + 1;
+            let (g0, g1) = if gap.0 >= gap.1 {
+                (split, split)
+            } else {
+                (gap.0.min(split), gap.1.max(split))
+            };
+            let mut out = vec![Complex64::new(7.0, -7.0); rows];
+            for (a, b) in [(0, g0), (g1, rows)] {
+                out[a..b].fill(Complex64::new(0.0, 0.0));
+            }
+            for &(w, m, d) in &seg.seg {
+                for (a, b) in [(0, g0), (g1, rows)] {
+                    if a >= b {
+                        continue;
+                    }
+                    let step = if b - a > 1 { fy[a + 1] - fy[a] } else { 0.0 };
+                    let mut ph =
+                        [Complex64::from_polar(w, -2.0 * PI * (fx * m[0] + fy[a] * m[1])); LANES];
+                    let ph_step = Complex64::from_polar(1.0, -2.0 * PI * step * m[1]);
+                    let a0 = fx * d[0] + fy[a] * d[1];
+                    let a_step = step * d[1];
+                    let e_step = Complex64::from_polar(1.0, PI * a_step);
+                    let mut e = [Complex64::from_polar(1.0, PI * a0); LANES];
+                    let mut x = [a0; LANES];
+                    for l in 1..LANES {
+                        ph[l] = ph[l - 1] * ph_step;
+                        e[l] = e[l - 1] * e_step;
+                        x[l] = a0 + l as f64 * a_step;
+                    }
+                    let (pj, ej) = (ph_step.powu(LANES as u32), e_step.powu(LANES as u32));
+                    for (i, o) in out[a..b].iter_mut().enumerate() {
+                        let l = i % LANES;
+                        let t = PI * x[l];
+                        let sinc = if t.abs() < 1e-3 {
+                            1.0 - t * t / 6.0 * (1.0 - t * t / 20.0)
+                        } else {
+                            e[l].im / t
+                        };
+                        *o += ph[l] * sinc;
+                        ph[l] *= pj;
+                        e[l] *= ej;
+                        x[l] += LANES as f64 * a_step;
+                    }
+                }
+            }
+            out
+        }
+        let curved: Vec<[f64; 2]> = (0..5)
+            .map(|i| {
+                let t = i as f64 / 4.0;
+                [3e-4 * (5.0 * t).sin(), 2e-4 * t * t - 1e-4 * t]
+            })
+            .collect();
+        let paths = [
+            WindowPath::from_points(&curved, 0.0),
+            WindowPath::from_points(&[[0.0, 0.0], [2e-4, 3e-4]], 0.0),
+            WindowPath::from_points(&[[-1e-4, 0.0], [0.0, 0.0], [1e-4, 0.0]], 0.0),
+        ];
+        for path in &paths {
+            let segments = Segments::of(path);
+            for (rows, cols) in [(22usize, 20usize), (23, 21)] {
+                let grid = FrequencyGrid::real_fft(rows, cols, 1e-4, 1.2e-4);
+                for gap in [(rows, rows), (7, 15)] {
+                    for u in [0, 3, cols / 2] {
+                        let want = reference(&segments, grid.fx[u], &grid.fy, gap);
+                        let mut got = vec![Complex64::new(7.0, -7.0); rows];
+                        segments.column_portable(grid.fx[u], &grid.fy, gap, &mut got);
+                        for (v, (x, y)) in got.iter().zip(&want).enumerate() {
+                            assert_eq!(
+                                (x.re.to_bits(), x.im.to_bits()),
+                                (y.re.to_bits(), y.im.to_bits()),
+                                "{rows}x{cols} u {u} gap {gap:?} row {v}: {x} vs {y}"
+                            );
+                        }
+                    }
+                }
             }
         }
     }
