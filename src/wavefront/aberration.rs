@@ -172,7 +172,10 @@ impl LocalWavefront {
     }
 
     fn lerp(&self, other: &LocalWavefront, t: f64) -> LocalWavefront {
-        let n = self.zernike_rms_waves.len().max(other.zernike_rms_waves.len());
+        let n = self
+            .zernike_rms_waves
+            .len()
+            .max(other.zernike_rms_waves.len());
         let get = |v: &[f64], i: usize| v.get(i).copied().unwrap_or(0.0);
         LocalWavefront {
             seidel: self.seidel.lerp(&other.seidel, t),
@@ -244,13 +247,20 @@ impl WavefrontModel {
                 for (i, (h, w)) in rows.iter().enumerate() {
                     let at = format!("field_point[{i}].");
                     if !(h.is_finite() && (0.0..=1.0).contains(h)) {
-                        return Err(Error::param(format!("{at}h"), h, "a field height in [0, 1]"));
+                        return Err(Error::param(
+                            format!("{at}h"),
+                            h,
+                            "a field height in [0, 1]",
+                        ));
                     }
                     if i > 0 && *h <= rows[i - 1].0 {
                         return Err(Error::param(
                             format!("{at}h"),
                             h,
-                            format!("field heights strictly increasing (previous {})", rows[i - 1].0),
+                            format!(
+                                "field heights strictly increasing (previous {})",
+                                rows[i - 1].0
+                            ),
                         ));
                     }
                     check_local(w, &at)?;

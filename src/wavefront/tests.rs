@@ -105,13 +105,26 @@ fn zero_wavefront_is_the_analytic_diffraction_otf_and_the_sampling_bound_holds()
     }
     // λ scaling of the frequency axis: X = f λ / D. At f = 0.5 D/λ the OTF is the clear
     // OTF at X = 0.5; at twice the wavelength the same f is the cutoff.
-    let t = PupilTransfer::compute(&Pupil::clear(), &zero, LAMBDA, LAMBDA, D, Sampling::default())
-        .unwrap();
+    let t = PupilTransfer::compute(
+        &Pupil::clear(),
+        &zero,
+        LAMBDA,
+        LAMBDA,
+        D,
+        Sampling::default(),
+    )
+    .unwrap();
     let f = 0.5 * D / LAMBDA;
     assert!((t.at_cy_per_rad(f, 0.0).re - optics::diffraction_clear(0.5)).abs() < 1e-3);
-    let t2 =
-        PupilTransfer::compute(&Pupil::clear(), &zero, LAMBDA, 2.0 * LAMBDA, D, Sampling::default())
-            .unwrap();
+    let t2 = PupilTransfer::compute(
+        &Pupil::clear(),
+        &zero,
+        LAMBDA,
+        2.0 * LAMBDA,
+        D,
+        Sampling::default(),
+    )
+    .unwrap();
     assert!(t2.at_cy_per_rad(f, 0.0).norm() < 1e-3);
     assert!((t2.at_cy_per_rad(0.5 * f, 0.0).re - optics::diffraction_clear(0.5)).abs() < 1e-3);
 }
@@ -119,10 +132,19 @@ fn zero_wavefront_is_the_analytic_diffraction_otf_and_the_sampling_bound_holds()
 #[test]
 fn defocus_matches_the_exact_integral_and_the_hopkins_form() {
     for w020 in [0.1, 0.25, 0.5, 1.0] {
-        let t = transfer(&Pupil::clear(), &seidel(Seidel { w020, ..Seidel::default() }), 256, 2);
+        let t = transfer(
+            &Pupil::clear(),
+            &seidel(Seidel {
+                w020,
+                ..Seidel::default()
+            }),
+            256,
+            2,
+        );
         let exact = max_error_on_axes(&t, |x| defocus_exact(x, w020));
-        let hopkins =
-            max_radial_error(&t, |x| optics::diffraction_clear(x) * optics::defocus(x, w020));
+        let hopkins = max_radial_error(&t, |x| {
+            optics::diffraction_clear(x) * optics::defocus(x, w020)
+        });
         eprintln!("defocus W020 = {w020}: vs exact {exact:.2e}, vs optics::defocus {hopkins:.2e}");
         assert!(exact < 2e-3, "W020 = {w020}: {exact:.2e}");
         // optics::defocus is Hopkins' approximation: within 2e-3 of the pupil OTF for a
@@ -131,7 +153,10 @@ fn defocus_matches_the_exact_integral_and_the_hopkins_form() {
         assert!(hopkins < tol, "W020 = {w020}: {hopkins:.2e}");
     }
     // A fixed optical path difference: W020 = 0.5 wave at λ_ref is 0.25 wave at 2 λ_ref.
-    let w = seidel(Seidel { w020: 0.5, ..Seidel::default() });
+    let w = seidel(Seidel {
+        w020: 0.5,
+        ..Seidel::default()
+    });
     let s = Sampling::default();
     let t = PupilTransfer::compute(&Pupil::clear(), &w, LAMBDA, 2.0 * LAMBDA, D, s).unwrap();
     let e = max_error_on_axes(&t, |x| defocus_exact(x, 0.25));
@@ -144,7 +169,11 @@ fn asymmetry(t: &PupilTransfer, flip_y: bool) -> f64 {
     let m = psf.nrows();
     let mut s = 0.0;
     for ((r, c), &v) in psf.indexed_iter() {
-        let (rr, cc) = if flip_y { ((m - r) % m, c) } else { (r, (m - c) % m) };
+        let (rr, cc) = if flip_y {
+            ((m - r) % m, c)
+        } else {
+            (r, (m - c) % m)
+        };
         s += (v - psf[(rr, cc)]).abs();
     }
     s / 2.0
@@ -158,7 +187,13 @@ fn coma_moves_the_centroid_by_the_mean_wavefront_slope() {
     // centroid is 2 W131 λ/D along +y. Noll Z7 = √8(3ρ³−2ρ) sin θ: edge value √8 y, so
     // c·Z7 moves it by 2√8 c λ/D, although Z7 has no Zernike tilt.
     let cases = [
-        (seidel(Seidel { w131: 0.3, ..Seidel::default() }), 2.0 * 0.3),
+        (
+            seidel(Seidel {
+                w131: 0.3,
+                ..Seidel::default()
+            }),
+            2.0 * 0.3,
+        ),
         (
             LocalWavefront {
                 seidel: Seidel::default(),
@@ -171,7 +206,10 @@ fn coma_moves_the_centroid_by_the_mean_wavefront_slope() {
         let t = transfer(&Pupil::clear(), &w, 256, 2);
         let (cx, cy) = t.centroid_rad();
         let want = shift_lambda_over_d * LAMBDA / D;
-        eprintln!("coma centroid y {:.5} λ/D, theory {shift_lambda_over_d:.5}", cy * D / LAMBDA);
+        eprintln!(
+            "coma centroid y {:.5} λ/D, theory {shift_lambda_over_d:.5}",
+            cy * D / LAMBDA
+        );
         assert!((cy / want - 1.0).abs() < 0.02, "centroid {cy} vs {want}");
         assert!(cx.abs() < 1e-3 * want, "x centroid {cx}");
         // Coma is asymmetric along the field (y) and mirror-symmetric across it (x).
@@ -192,11 +230,22 @@ fn astigmatism_tangential_and_sagittal_are_defocus_curves() {
     // focus) the two sections are the defocus OTFs of −W222/2 and +W222/2 (Mahajan,
     // Optical Imaging and Aberrations II, §2.4).
     let w222 = 0.5;
-    let t = transfer(&Pupil::clear(), &seidel(Seidel { w222, ..Seidel::default() }), 256, 2);
+    let t = transfer(
+        &Pupil::clear(),
+        &seidel(Seidel {
+            w222,
+            ..Seidel::default()
+        }),
+        256,
+        2,
+    );
     let mut gap: f64 = 0.0;
     for ((x, tv), (_, sv)) in axis(&t, true).into_iter().zip(axis(&t, false)) {
         assert!((tv.re - defocus_exact(x, w222)).abs() < 2e-3, "T at {x}");
-        assert!((sv.re - optics::diffraction_clear(x)).abs() < 2e-3, "S at {x}");
+        assert!(
+            (sv.re - optics::diffraction_clear(x)).abs() < 2e-3,
+            "S at {x}"
+        );
         gap = gap.max((t.tangential_mtf(x) - t.sagittal_mtf(x)).abs());
     }
     assert!(gap > 0.2, "T and S should differ: {gap}");
@@ -225,7 +274,11 @@ fn spider_vanes_conserve_energy_and_make_spikes_across_the_vanes() {
     // the obscuration to the rim (in samples; the pixelated edge makes ≲ 0.5 %).
     let a = n as f64 / 2.0;
     let area = PI * a * a * (1.0 - r * r) - 3.0 * (width * n as f64) * a * (1.0 - r);
-    assert!((t.pupil_energy() / area - 1.0).abs() < 5e-3, "{} vs {area}", t.pupil_energy());
+    assert!(
+        (t.pupil_energy() / area - 1.0).abs() < 5e-3,
+        "{} vs {area}",
+        t.pupil_energy()
+    );
     assert!((t.psf().sum() - 1.0).abs() < 1e-12);
     assert!((t.otf_grid()[(n, n)].re - 1.0).abs() < 1e-12);
     // Spikes: the light the vanes add, in 10° sectors of the annulus 6–40 λ/D, peaks
@@ -247,6 +300,10 @@ fn spider_vanes_conserve_energy_and_make_spikes_across_the_vanes() {
         let spike = sector[6 * k];
         let between = sector[6 * k + 3];
         eprintln!("spike {}°: {spike:.2e}, between: {between:.2e}", 60 * k);
-        assert!(spike > 10.0 * between, "{}°: {spike:.2e} vs {between:.2e}", 60 * k);
+        assert!(
+            spike > 10.0 * between,
+            "{}°: {spike:.2e} vs {between:.2e}",
+            60 * k
+        );
     }
 }

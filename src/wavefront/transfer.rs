@@ -290,7 +290,6 @@ impl PupilTransfer {
         self.pupil_energy
     }
 
-
     /// Peak of the PSF on its grid over the peak of the unaberrated PSF of the same pupil
     /// (a lower bound of the Strehl ratio: the true peak may fall between samples).
     pub fn strehl(&self) -> f64 {
