@@ -15,7 +15,8 @@
 //! spherical aberration.
 //!
 //! **Seidel** (Hopkins, *Wave Theory of Aberrations*, 1950; Mahajan, *Optical Imaging and
-//! Aberrations* I, §1.4; Wyant & Creath, "Basic wavefront aberration theory", 1992, eq. 30):
+//! Aberrations*, Part I; Wyant & Creath, "Basic wavefront aberration theory for optical
+//! metrology", Applied Optics and Optical Engineering XI, 1992):
 //! `W = W020 ρ² + W040 ρ⁴ + W131 H ρ³ cos φ + W222 H² ρ² cos² φ + W220 H² ρ² + W311 H³ ρ cos φ`,
 //! φ measured from the tangential (+y) axis (so `ρ cos φ = y`), H the normalised field
 //! height in [0, 1]. Coefficients are peak values at the pupil edge and, for the field

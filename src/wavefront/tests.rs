@@ -49,7 +49,8 @@ fn max_error_where(
     worst
 }
 
-/// Exact defocused OTF (Hopkins 1955; docs/wavefront.md):
+/// Exact defocused OTF (H. H. Hopkins, Proc. R. Soc. A 231, 91, 1955; derived in
+/// docs/wavefront.md):
 /// `(4/π) ∫₀^{acos X} sin²φ cos(8π W020 X (cos φ − X)) dφ`, by Simpson's rule.
 fn defocus_exact(x: f64, w020: f64) -> f64 {
     if x >= 1.0 {
@@ -227,8 +228,8 @@ fn astigmatism_tangential_and_sagittal_are_defocus_curves() {
     // W222 y² (φ from +y): along the tangential axis the pupil phase difference of a shift
     // s is 2 W222 y s, that of a defocus W020 = W222; along the sagittal axis the wavefront
     // is constant, so the OTF is the diffraction one. With a defocus W020 = −W222/2 (medial
-    // focus) the two sections are the defocus OTFs of −W222/2 and +W222/2 (Mahajan,
-    // Optical Imaging and Aberrations II, §2.4).
+    // focus) the wavefront is (W222/2)(y² − x²): the two sections are the defocus OTFs of
+    // +W222/2 and −W222/2, equal since the defocus OTF is even in W020.
     let w222 = 0.5;
     let t = transfer(
         &Pupil::clear(),

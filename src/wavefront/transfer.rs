@@ -1,6 +1,6 @@
 //! The optical transfer function and point-spread function of a generalised pupil
 //! `P(x, y) = A(x, y) · exp(2πi W(x, y) λ_ref/λ)` (Goodman, *Introduction to Fourier Optics*,
-//! 3rd ed., §6.4, eqs. 6-31 and 6-32), with `A` the aperture ([`Pupil`]) and `W` the
+//! 3rd ed., §6.3–6.4: the OTF is the normalised autocorrelation of the generalised pupil), with `A` the aperture ([`Pupil`]) and `W` the
 //! wavefront in waves at the reference wavelength λ_ref ([`LocalWavefront`]).
 //!
 //! The pupil is sampled with `n` samples across its diameter D on an `M × M` grid
@@ -8,7 +8,7 @@
 //! - PSF = |FFT(P)|² (normalised to unit sum); its sample is `Δθ = λ n/(M D)` rad, so it
 //!   covers `n λ/D` in angle;
 //! - OTF = FFT(PSF) normalised to 1 at zero frequency, which is the autocorrelation of P
-//!   divided by `Σ|P|²` (Goodman eq. 6-31). Padding ≥ 2 makes the circular autocorrelation
+//!   divided by `Σ|P|²` (Goodman §6.3). Padding ≥ 2 makes the circular autocorrelation
 //!   equal the linear one. A pupil shift of one sample is the normalised frequency
 //!   `X = f/f_c = 1/n`, with `f_c = D/λ` cycles/rad, so the OTF grid step is `D/(n λ)`
 //!   cycles/rad: both the pupil sampling in frequency and the phase (∝ 1/λ for a fixed
