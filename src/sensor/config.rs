@@ -70,8 +70,7 @@ pub struct OpticsConfig {
     /// Apply the cos⁴θ off-axis irradiance fall-off.
     #[serde(default)]
     pub cos4: bool,
-    /// The wavefront for transfer functions from the pupil (`[optics.wavefront]`,
-    /// docs/wavefront.md); used by `eoir psf` and `eoir mtf --field`.
+    /// `[optics.wavefront]` (docs/wavefront.md): `eoir psf`, `eoir mtf --field`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub wavefront: Option<super::wavefront::WavefrontConfig>,
 }
@@ -477,10 +476,7 @@ impl SensorConfig {
                 "a number in [0, 1)",
             ));
         }
-        if let Some(w) = &o.wavefront {
-            w.model()?;
-            w.pupil(o.obscuration_ratio)?;
-        }
+        super::wavefront::validate(o)?;
         let d = &self.detector;
         // The detector instance holds about eight per-pixel f64 maps (FPN, dark, defects,
         // calibration) besides the frames checked per run (crate::limits::check_run).
@@ -750,13 +746,7 @@ impl SensorConfig {
     /// Things that are valid but probably not what the user meant.
     pub fn warnings(&self) -> Vec<String> {
         let mut w = Vec::new();
-        if self.optics.wavefront.is_some() {
-            w.push(
-                "[optics.wavefront] is used by `eoir psf` and `eoir mtf --field` only; the \
-                 imaging cascade still uses [diffraction], [aberration] and [defocus]"
-                    .to_string(),
-            );
-        }
+        w.extend(super::wavefront::cascade_warning(&self.optics));
         if let (Some(a), Some(_)) = (&self.aerosol, &self.atmosphere) {
             if !a.dc_normalised {
                 w.push(

@@ -235,6 +235,13 @@ impl WavefrontConfig {
 
     /// The pupil: the `[optics]` obscuration with these spider vanes.
     pub fn pupil(&self, obscuration_ratio: f64) -> Result<Pupil> {
+        if !self.spider_angle_deg.is_finite() {
+            return Err(Error::param(
+                format!("{PREFIX}spider_angle_deg"),
+                self.spider_angle_deg,
+                "a finite angle in degrees",
+            ));
+        }
         Pupil::obscured(obscuration_ratio)
             .map_err(|e| match e {
                 Error::InvalidParameter {
@@ -253,6 +260,24 @@ impl WavefrontConfig {
             )
             .map_err(named)
     }
+}
+
+/// Checks `[optics.wavefront]`, if present, with the `[optics]` obscuration.
+pub fn validate(optics: &super::config::OpticsConfig) -> Result<()> {
+    if let Some(w) = &optics.wavefront {
+        w.model()?;
+        w.pupil(optics.obscuration_ratio)?;
+    }
+    Ok(())
+}
+
+/// The warning of a sensor with `[optics.wavefront]`: the imaging cascade does not use it.
+pub fn cascade_warning(optics: &super::config::OpticsConfig) -> Option<String> {
+    optics.wavefront.as_ref().map(|_| {
+        "[optics.wavefront] is used by `eoir psf` and `eoir mtf --field` only; the imaging \
+         cascade still uses [diffraction], [aberration] and [defocus]"
+            .to_string()
+    })
 }
 
 /// The pupil PSF/OTF of a sensor at normalised field height `h` and `wavelength_m`: the
