@@ -84,5 +84,6 @@ pub mod report;
 pub mod scene;
 pub mod sensor;
 pub mod spectrum;
+pub mod wavefront;
 
 pub use error::{Error, Result};

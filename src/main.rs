@@ -32,6 +32,9 @@ enum Command {
     Temperature(cli::temperature::TemperatureArgs),
     /// Print or plot the transfer functions (MTF) of a sensor along the x axis.
     Mtf(mtf::MtfArgs),
+    /// Pictures of the pupil PSF across the field (`[optics.wavefront]`): psf_grid.png,
+    /// psf.json.
+    Psf(cli::psf::PsfArgs),
     /// Sharpen a recorded image with the sensor's own transfer function (Wiener filter).
     Restore(restore::RestoreArgs),
     /// Measure the MTF of a slanted edge in an image (ISO 12233).
@@ -63,6 +66,7 @@ fn main() -> ExitCode {
         Command::Scene(args) => scene::scene(args),
         Command::Temperature(args) => cli::temperature::temperature(args),
         Command::Mtf(args) => mtf::mtf(args),
+        Command::Psf(args) => cli::psf::psf(args),
         Command::Sensors(args) => sensors::sensors(args),
         Command::Restore(args) => restore::restore(args),
         Command::EdgeMtf(args) => edge_mtf::edge_mtf(args),

@@ -9,6 +9,7 @@ pub mod edge_mtf;
 pub mod mtf;
 pub mod nuc;
 pub mod progress;
+pub mod psf;
 pub mod restore;
 pub mod restore_sequence;
 pub mod rts;

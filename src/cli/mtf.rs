@@ -26,6 +26,11 @@ pub struct MtfArgs {
     /// Write a PNG plot.
     #[arg(long)]
     pub png: Option<PathBuf>,
+    /// Add the tangential and sagittal pupil MTF at this normalised field height (0..1),
+    /// from `[optics.wavefront]` (docs/wavefront.md): columns `pupil_tangential_H…` and
+    /// `pupil_sagittal_H…`.
+    #[arg(long)]
+    pub field: Option<f64>,
 }
 
 /// Prints the transfer functions, or writes them as CSV / PNG.
@@ -41,7 +46,30 @@ pub fn mtf(args: MtfArgs) -> Result<()> {
     // Every curve (about a dozen components) holds one f64 per point, plus the CSV text.
     eoir::limits::check_alloc("--points", &[("points", args.points as u64)], 16 * 8 + 200)?;
     let to_stdout = args.csv.as_deref().is_some_and(eoir::io::output::is_stdout);
-    let curves = MtfCurves::compute(&sensor, wavelength_um, args.max_cy_per_mrad, args.points)?;
+    let mut curves = MtfCurves::compute(&sensor, wavelength_um, args.max_cy_per_mrad, args.points)?;
+    if let Some(h) = args.field {
+        let config = args.sensor.load_config()?;
+        let t = eoir::sensor::wavefront::pupil_transfer(&config, h, wavelength_um * 1e-6, 2)
+            .with_context(|| format!("--field {h}"))?;
+        // Frequency along the field direction (tangential) and across it (sagittal).
+        let along = |tangential: bool| -> Vec<f64> {
+            curves
+                .freq_cy_per_mrad
+                .iter()
+                .map(|&f| {
+                    let f = f * 1e3;
+                    if tangential {
+                        t.at_cy_per_rad(0.0, f).norm()
+                    } else {
+                        t.at_cy_per_rad(f, 0.0).norm()
+                    }
+                })
+                .collect()
+        };
+        let (tan, sag) = (along(true), along(false));
+        curves.columns.push((format!("pupil_tangential_H{h}"), tan));
+        curves.columns.push((format!("pupil_sagittal_H{h}"), sag));
+    }
     let at_nyquist = curves.system_at_nyquist;
     if to_stdout {
         use std::io::Write;

@@ -70,6 +70,9 @@ pub struct OpticsConfig {
     /// Apply the cos⁴θ off-axis irradiance fall-off.
     #[serde(default)]
     pub cos4: bool,
+    /// `[optics.wavefront]` (docs/wavefront.md): `eoir psf`, `eoir mtf --field`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wavefront: Option<super::wavefront::WavefrontConfig>,
 }
 
 /// `[diffraction]`: the aperture (clear or obscured, from `[optics]`). On by default.
@@ -473,6 +476,7 @@ impl SensorConfig {
                 "a number in [0, 1)",
             ));
         }
+        super::wavefront::validate(o)?;
         let d = &self.detector;
         // The detector instance holds about eight per-pixel f64 maps (FPN, dark, defects,
         // calibration) besides the frames checked per run (crate::limits::check_run).
@@ -742,6 +746,7 @@ impl SensorConfig {
     /// Things that are valid but probably not what the user meant.
     pub fn warnings(&self) -> Vec<String> {
         let mut w = Vec::new();
+        w.extend(super::wavefront::cascade_warning(&self.optics));
         if let (Some(a), Some(_)) = (&self.aerosol, &self.atmosphere) {
             if !a.dc_normalised {
                 w.push(

@@ -1,7 +1,8 @@
 //! The sensor: its configuration schema ([`config`], with the `[detector]` table from
 //! [`crate::detector::config`]), the embedded presets ([`presets`]), the cascade of
 //! transfer functions it implies ([`otf`]), and the resolved [`Sensor`] that every stage of
-//! a run takes ([`resolved`]: built once, validated, every referenced file read once).
+//! a run takes ([`resolved`]: built once, validated, every referenced file read once), and
+//! the optional `[optics.wavefront]` table ([`wavefront`]).
 //!
 //! The cascade lives here rather than in `optics` because it combines optics, atmosphere
 //! and motion terms as one sensor description configures them; `optics`, `atmosphere` and
@@ -11,6 +12,7 @@ pub mod config;
 pub mod otf;
 pub mod presets;
 pub mod resolved;
+pub mod wavefront;
 
 pub use config::MotionConfig;
 pub use config::{apply_override, Override, SensorConfig, SpectrumConfig};

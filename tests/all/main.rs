@@ -41,6 +41,7 @@ mod presets_run;
 mod processing;
 mod product_sets;
 mod products;
+mod pupil;
 mod radiometry;
 mod restore;
 mod scene_cli;

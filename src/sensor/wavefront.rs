@@ -1,0 +1,385 @@
+//! `[optics.wavefront]`: the lens's wavefront for transfer functions from the pupil
+//! (docs/wavefront.md). Optional; absent, nothing changes.
+//!
+//! ```toml
+//! [optics.wavefront]
+//! reference_wavelength_um = 4.0
+//! zernike_convention = "noll_rms"      # the only convention: Noll 1976, RMS-normalised
+//! field_dependence = "seidel"          # or "table"
+//! w040_waves = 0.1                     # Seidel, waves at the reference wavelength,
+//! w131_waves = 0.2                     # full-field (H = 1) values
+//! zernike_noll_rms_waves = [0, 0, 0, 0.02]   # Z1, Z2, …: field-independent terms
+//! spider_vanes = 0
+//! ```
+//!
+//! With `field_dependence = "table"`, the coefficients are given per field point instead:
+//! `[[optics.wavefront.field_point]]` tables with `h` and the same coefficient keys, local
+//! values at that field height, interpolated linearly in H.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::wavefront::{
+    FieldDependence, LocalWavefront, Pupil, PupilTransfer, Sampling, Seidel, WavefrontModel,
+};
+
+/// How the coefficients depend on the normalised field height H.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FieldLaw {
+    /// Seidel field law on full-field coefficients (coma ∝ H, astigmatism and field
+    /// curvature ∝ H², distortion ∝ H³, defocus and spherical constant).
+    #[default]
+    Seidel,
+    /// Local coefficients at field points (`field_point`), linear in H.
+    Table,
+}
+
+/// The Zernike ordering and normalisation of `zernike_noll_rms_waves`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ZernikeConvention {
+    /// Noll (1976) ordering, RMS-normalised polynomials.
+    #[default]
+    NollRms,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
+/// Seidel and Zernike coefficients, waves at the reference wavelength (as read from a
+/// `[optics.wavefront]` table or a field point).
+#[derive(Debug, Clone, Default, PartialEq)]
+struct CoefficientsConfig {
+    seidel: Seidel,
+    zernike_noll_rms_waves: Vec<f64>,
+}
+
+macro_rules! coefficients_of {
+    ($c:expr) => {
+        CoefficientsConfig {
+            seidel: Seidel {
+                w020: $c.w020_waves,
+                w040: $c.w040_waves,
+                w131: $c.w131_waves,
+                w222: $c.w222_waves,
+                w220: $c.w220_waves,
+                w311: $c.w311_waves,
+            },
+            zernike_noll_rms_waves: $c.zernike_noll_rms_waves.clone(),
+        }
+    };
+}
+
+impl CoefficientsConfig {
+    fn is_empty(&self) -> bool {
+        *self == CoefficientsConfig::default()
+    }
+}
+
+/// One row of a field table.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FieldPointConfig {
+    /// Normalised field height H in [0, 1].
+    pub h: f64,
+    /// Defocus W020 ρ².
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub w020_waves: f64,
+    /// Spherical aberration W040 ρ⁴.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub w040_waves: f64,
+    /// Coma W131 ρ³ cos φ.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub w131_waves: f64,
+    /// Astigmatism W222 ρ² cos² φ.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub w222_waves: f64,
+    /// Field curvature W220 ρ².
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub w220_waves: f64,
+    /// Distortion W311 ρ cos φ.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub w311_waves: f64,
+    /// Noll Zernike coefficients, RMS waves: element i is Z_{i+1}.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub zernike_noll_rms_waves: Vec<f64>,
+}
+
+/// `[optics.wavefront]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WavefrontConfig {
+    /// Wavelength the coefficients are given at, µm (the optical path difference is
+    /// coefficient × this wavelength at every wavelength).
+    pub reference_wavelength_um: f64,
+    /// Zernike convention (only `noll_rms`).
+    #[serde(default)]
+    pub zernike_convention: ZernikeConvention,
+    /// `seidel` (full-field coefficients and the Seidel field law) or `table`.
+    #[serde(default)]
+    pub field_dependence: FieldLaw,
+    /// Defocus W020 ρ² (with `seidel`: full-field values; must be absent with `table`).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub w020_waves: f64,
+    /// Spherical aberration W040 ρ⁴.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub w040_waves: f64,
+    /// Coma W131 ρ³ cos φ.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub w131_waves: f64,
+    /// Astigmatism W222 ρ² cos² φ.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub w222_waves: f64,
+    /// Field curvature W220 ρ².
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub w220_waves: f64,
+    /// Distortion W311 ρ cos φ.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub w311_waves: f64,
+    /// Noll Zernike coefficients, RMS waves: element i is Z_{i+1}.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub zernike_noll_rms_waves: Vec<f64>,
+    /// Field points (`table`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub field_point: Vec<FieldPointConfig>,
+    /// Number of radial spider vanes (0..=16).
+    #[serde(default, skip_serializing_if = "u32_is_zero")]
+    pub spider_vanes: u32,
+    /// Vane width as a fraction of the aperture diameter, [0, 0.5).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub spider_width_fraction: f64,
+    /// Direction of the first vane, degrees counter-clockwise from the sagittal axis.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub spider_angle_deg: f64,
+}
+
+fn u32_is_zero(v: &u32) -> bool {
+    *v == 0
+}
+
+const PREFIX: &str = "optics.wavefront.";
+
+/// Prefixes the field of a parameter error with `optics.wavefront.`.
+fn named(e: Error) -> Error {
+    match e {
+        Error::InvalidParameter {
+            field,
+            value,
+            expected,
+        } => Error::InvalidParameter {
+            field: format!("{PREFIX}{field}"),
+            value,
+            expected,
+        },
+        other => other,
+    }
+}
+
+impl WavefrontConfig {
+    /// The wavefront model; errors name the `optics.wavefront.` key, its value and what is
+    /// valid.
+    pub fn model(&self) -> Result<WavefrontModel> {
+        let lambda_um = self.reference_wavelength_um;
+        if !(lambda_um.is_finite() && lambda_um > 0.0 && lambda_um <= 1000.0) {
+            return Err(Error::param(
+                format!("{PREFIX}reference_wavelength_um"),
+                lambda_um,
+                "a wavelength in (0, 1000] µm",
+            ));
+        }
+        let top = coefficients_of!(self);
+        let field = match self.field_dependence {
+            FieldLaw::Seidel => {
+                if !self.field_point.is_empty() {
+                    return Err(Error::param(
+                        format!("{PREFIX}field_point"),
+                        format!("{} rows", self.field_point.len()),
+                        "no field points with field_dependence = \"seidel\" (use \"table\")",
+                    ));
+                }
+                FieldDependence::Seidel {
+                    full_field: top.seidel,
+                    zernike_rms_waves: top.zernike_noll_rms_waves,
+                }
+            }
+            FieldLaw::Table => {
+                if !top.is_empty() {
+                    return Err(Error::param(
+                        format!("{PREFIX}field_dependence"),
+                        "\"table\"",
+                        "coefficients only inside [[optics.wavefront.field_point]] rows \
+                         (top-level w…_waves / zernike_noll_rms_waves are for \"seidel\")",
+                    ));
+                }
+                FieldDependence::Table(
+                    self.field_point
+                        .iter()
+                        .map(|p| {
+                            let c = coefficients_of!(p);
+                            (
+                                p.h,
+                                LocalWavefront {
+                                    seidel: c.seidel,
+                                    zernike_rms_waves: c.zernike_noll_rms_waves,
+                                },
+                            )
+                        })
+                        .collect(),
+                )
+            }
+        };
+        WavefrontModel::new(lambda_um * 1e-6, field).map_err(named)
+    }
+
+    /// The pupil: the `[optics]` obscuration with these spider vanes.
+    pub fn pupil(&self, obscuration_ratio: f64) -> Result<Pupil> {
+        if !self.spider_angle_deg.is_finite() {
+            return Err(Error::param(
+                format!("{PREFIX}spider_angle_deg"),
+                self.spider_angle_deg,
+                "a finite angle in degrees",
+            ));
+        }
+        Pupil::obscured(obscuration_ratio)
+            .map_err(|e| match e {
+                Error::InvalidParameter {
+                    value, expected, ..
+                } => Error::InvalidParameter {
+                    field: "optics.obscuration_ratio".into(),
+                    value,
+                    expected,
+                },
+                other => other,
+            })?
+            .with_spider(
+                self.spider_vanes,
+                self.spider_width_fraction,
+                self.spider_angle_deg.to_radians(),
+            )
+            .map_err(named)
+    }
+}
+
+/// Checks `[optics.wavefront]`, if present, with the `[optics]` obscuration.
+pub fn validate(optics: &super::config::OpticsConfig) -> Result<()> {
+    if let Some(w) = &optics.wavefront {
+        w.model()?;
+        w.pupil(optics.obscuration_ratio)?;
+    }
+    Ok(())
+}
+
+/// The warning of a sensor with `[optics.wavefront]`: the imaging cascade does not use it.
+pub fn cascade_warning(optics: &super::config::OpticsConfig) -> Option<String> {
+    optics.wavefront.as_ref().map(|_| {
+        "[optics.wavefront] is used by `eoir psf` and `eoir mtf --field` only; the imaging \
+         cascade still uses [diffraction], [aberration] and [defocus]"
+            .to_string()
+    })
+}
+
+/// The pupil PSF/OTF of a sensor at normalised field height `h` and `wavelength_m`: the
+/// `[optics.wavefront]` wavefront and spider vanes, or a zero wavefront (diffraction only)
+/// when the section is absent; the `[optics]` aperture and obscuration. The pupil sampling
+/// is refined for steep wavefronts ([`Sampling::for_wavefront`]); `padding` is the grid
+/// size over the pupil samples (2 for the OTF, 4 for PSF pictures).
+pub fn pupil_transfer(
+    config: &super::SensorConfig,
+    h: f64,
+    wavelength_m: f64,
+    padding: usize,
+) -> Result<PupilTransfer> {
+    if !(h.is_finite() && (0.0..=1.0).contains(&h)) {
+        return Err(Error::param(
+            "field",
+            h,
+            "a normalised field height in [0, 1]",
+        ));
+    }
+    let o = &config.optics;
+    let diameter_m = o.focal_length_m / o.f_number;
+    let (pupil, local, reference_m) = match &o.wavefront {
+        Some(w) => {
+            let model = w.model()?;
+            (
+                w.pupil(o.obscuration_ratio)?,
+                model.at_field(h),
+                model.reference_wavelength_m(),
+            )
+        }
+        None => (
+            Pupil::obscured(o.obscuration_ratio)?,
+            LocalWavefront::default(),
+            wavelength_m,
+        ),
+    };
+    let sampling = Sampling::for_wavefront(&local, reference_m, wavelength_m, padding)?;
+    PupilTransfer::compute(
+        &pupil,
+        &local,
+        reference_m,
+        wavelength_m,
+        diameter_m,
+        sampling,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> std::result::Result<WavefrontConfig, String> {
+        toml::from_str::<WavefrontConfig>(text).map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn parses_validates_and_names_bad_fields() {
+        let c = parse("reference_wavelength_um = 4.0\nw131_waves = 0.2\nzernike_noll_rms_waves = [0, 0, 0, 0.05]\n")
+            .unwrap();
+        let m = c.model().unwrap();
+        assert!((m.at_field(0.5).seidel.w131 - 0.1).abs() < 1e-15);
+        let t = parse(
+            "reference_wavelength_um = 4.0\nfield_dependence = \"table\"\n\
+             [[field_point]]\nh = 0.0\n[[field_point]]\nh = 1.0\nw222_waves = 0.4\n",
+        )
+        .unwrap();
+        assert!((t.model().unwrap().at_field(0.5).seidel.w222 - 0.2).abs() < 1e-15);
+        let e = parse("reference_wavelength_um = -1.0\n")
+            .unwrap()
+            .model()
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("optics.wavefront.reference_wavelength_um") && e.contains("-1"),
+            "{e}"
+        );
+        let e = parse(
+            "reference_wavelength_um = 4.0\nfield_dependence = \"table\"\n\
+             [[field_point]]\nh = 1.5\n",
+        )
+        .unwrap()
+        .model()
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("optics.wavefront.field_point[0].h") && e.contains("[0, 1]"),
+            "{e}"
+        );
+        let e = parse("reference_wavelength_um = 4.0\nw040_waves = 1e9\n")
+            .unwrap()
+            .model()
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("optics.wavefront.w040_waves"), "{e}");
+        let e = parse("reference_wavelength_um = 4.0\nspider_vanes = 40\n")
+            .unwrap()
+            .pupil(0.0)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("optics.wavefront.spider_vanes"), "{e}");
+        assert!(parse("reference_wavelength_um = 4.0\nzernike_convention = \"fringe\"\n").is_err());
+        assert!(parse("reference_wavelength_um = 4.0\nw999_waves = 1\n").is_err());
+    }
+}
