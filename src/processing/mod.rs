@@ -12,8 +12,10 @@
 //! - [`netd`]: analytic and measured noise-equivalent temperature difference.
 //! - [`temperature`]: DN ↔ radiance calibration and apparent-temperature images,
 //!   docs/design.md §4.9.
-//! - [`wiener`]: Wiener restoration with the sensor's own transfer function on the
-//!   detector grid (FOI report eq. 3.6).
+//! - [`wiener`]: restoration with the sensor's own transfer function on the detector
+//!   grid: classic Wiener (FOI report eq. 3.6) and Wiener–Hunt (Laplacian prior).
+//! - [`restore_rule`]: the estimated error of each restoration filter and the automatic
+//!   choice among them (the input itself included).
 //! - [`edge_mtf`]: ISO 12233 slanted-edge MTF measurement.
 //! - [`noise_estimate`]: the white-noise level of one image (Immerkær 1996).
 //!
@@ -25,6 +27,7 @@ pub mod netd;
 pub mod noise_estimate;
 pub mod nuc;
 pub mod photon_transfer;
+pub mod restore_rule;
 pub mod temperature;
 pub mod wiener;
 
