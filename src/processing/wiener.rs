@@ -102,6 +102,14 @@ pub trait DetectorTransfer: Sync {
     /// frame (shape `[rows, cols/2 + 1]`, the layout of [`FrequencyGrid::real_fft`] with
     /// unit sample spacing).
     fn on_grid(&self, rows: usize, cols: usize) -> Result<Array2<f64>>;
+
+    /// Whether one transfer function describes the whole image (true unless overridden).
+    /// A colour mosaic (CFA) is not shift-invariant: its colour pattern is imposed after
+    /// the optics, so dividing by H would amplify the pattern itself; `Method::Auto`
+    /// then returns the input unrestored.
+    fn shift_invariant(&self) -> bool {
+        true
+    }
 }
 
 /// Any `Fn(fx, fy) -> H` (cycles per pixel along columns and rows) is a transfer function.
@@ -133,6 +141,7 @@ pub struct SensorTransfer {
     wavelength_um: Vec<f64>,
     weights: Vec<f64>,
     reference_temperature_k: f64,
+    mosaic: bool,
 }
 
 impl SensorTransfer {
@@ -187,6 +196,7 @@ impl SensorTransfer {
             wavelength_um,
             weights,
             reference_temperature_k,
+            mosaic: sensor.config().cfa.is_some(),
         })
     }
 
@@ -226,6 +236,10 @@ impl DetectorTransfer for SensorTransfer {
             acc.scaled_add(*w, &buf);
         }
         Ok(acc)
+    }
+
+    fn shift_invariant(&self) -> bool {
+        !self.mosaic
     }
 }
 
@@ -526,7 +540,12 @@ pub fn restore(
                 })
                 .collect();
             let bins = restore_rule::bins(&measured, pn);
-            let choice = restore_rule::choose(&bins, pn, method, fit.is_some());
+            let mut choice = restore_rule::choose(&bins, pn, method, fit.is_some());
+            if method == Method::Auto && !transfer.shift_invariant() {
+                // A colour mosaic: no filter of one transfer function applies.
+                choice.name = "none";
+                choice.candidates.retain(|c| c.name == "none");
+            }
             candidates = choice.candidates;
             let reg = |j: usize, k: usize| -> f64 {
                 let r = match choice.name {
