@@ -16,9 +16,13 @@
 //! filter, the deconvolution form of the "unbiased predictive risk" rule of Vogel
 //! (*Computational Methods for Inverse Problems*, SIAM 2002, §7.1) with the error measured
 //! against F rather than H·F. Where |H| < [`RISK_MIN_H`] that per-frequency estimate's
-//! variance (∝ 1/H⁴) swamps it; there the object power is the positive part of the same
-//! estimate pooled over the frequencies of the annulus (one of [`ANNULI`]) that share
-//! the small |H|: `max(Σ w(|G|² − P_n), 0) / Σ w H²`, w the bins' multiplicities.
+//! variance (∝ 1/H⁴) swamps it; there the object power is the same estimate pooled over
+//! the frequencies of the annulus (one of [`ANNULI`]) that share the small |H|,
+//! `Σ w(|G|² − P_n) / Σ w H²` (w the bins' multiplicities), when the pooled excess
+//! `Σ w(|G|² − P_n)` exceeds [`SIGNIFICANCE`] times its noise standard deviation
+//! `P_n √(Σ w²)`, and 0 otherwise. Without that test, an annulus where H ≈ 1e−5 turned
+//! the noise's chance excess into an object power of 1e10·P_n, and the input (W = 1, bias
+//! factor (1 − H)²) then beat every filter (bias factor ≈ 1) on that phantom power alone.
 //!
 //! Why not a fitted model there: an earlier version used the power law `A ρ^β` that
 //! the classic Wiener filter is built from. On a bar target the harmonics lift the fit far
@@ -39,6 +43,10 @@ use crate::error::{Error, Result};
 /// |H| from which the per-frequency object power `(|G|² − P_n)/H²` enters the estimated
 /// error; below it the power pooled over the annulus stands in (module documentation).
 pub const RISK_MIN_H: f64 = 0.1;
+
+/// Standard deviations of the noise by which an annulus's pooled excess power must
+/// exceed zero to count as object power (a one-sided 3σ test; below it, 0).
+pub const SIGNIFICANCE: f64 = 3.0;
 
 /// Number of radial annuli (up to the corner frequency √½ cycles/pixel) over which the
 /// object power of the small-|H| frequencies is pooled.
@@ -130,10 +138,20 @@ pub fn bins(measured: &[Measured], pn: f64) -> Vec<Bin> {
     let annulus = |r: f64| ((r / rho_max * ANNULI as f64) as usize).min(ANNULI - 1);
     let mut excess = [0.0f64; ANNULI];
     let mut h2 = [0.0f64; ANNULI];
+    let mut w2 = [0.0f64; ANNULI];
     for m in measured.iter().filter(|m| m.h.abs() < RISK_MIN_H) {
         let a = annulus(m.rho);
         excess[a] += m.w * (m.power - pn);
         h2[a] += m.w * m.h * m.h;
+        w2[a] += m.w * m.w;
+    }
+    // Only an excess the noise cannot explain counts: |G|² of pure noise is P_n times an
+    // exponential variate (standard deviation P_n), so Σ w(|G|² − P_n) has standard
+    // deviation P_n √(Σ w²); below SIGNIFICANCE of those the object power is taken as 0.
+    for a in 0..ANNULI {
+        if excess[a] <= SIGNIFICANCE * pn * w2[a].sqrt() {
+            excess[a] = 0.0;
+        }
     }
     measured
         .iter()
@@ -143,7 +161,7 @@ pub fn bins(measured: &[Measured], pn: f64) -> Vec<Bin> {
             } else {
                 let a = annulus(m.rho);
                 if h2[a] > 0.0 {
-                    excess[a].max(0.0) / h2[a]
+                    excess[a] / h2[a]
                 } else {
                     0.0
                 }
