@@ -225,7 +225,9 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
             let mean_e = (mean / k).max(0.0);
             Some(model.temporal_noise_dn(mean_e).powi(2) + model.quantisation_noise_dn().powi(2))
         }
-        InputKind::Float if units == "electrons" => Some(model.temporal_noise_e(mean.max(0.0)).powi(2)),
+        InputKind::Float if units == "electrons" => {
+            Some(model.temporal_noise_e(mean.max(0.0)).powi(2))
+        }
         InputKind::Float => None,
     };
     let rule = match (args.nsr, args.noise.as_str()) {

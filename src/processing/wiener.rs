@@ -370,7 +370,13 @@ fn pad_noise_factor(rows: usize, cols: usize, ny: usize, nx: usize) -> f64 {
     let axis = |n: usize, len: usize| -> f64 {
         pad_taps(n, pad_for(n), len)
             .iter()
-            .map(|(a, b, w)| if a == b { 1.0 } else { w * w + (1.0 - w) * (1.0 - w) })
+            .map(|(a, b, w)| {
+                if a == b {
+                    1.0
+                } else {
+                    w * w + (1.0 - w) * (1.0 - w)
+                }
+            })
             .sum()
     };
     axis(rows, ny) * axis(cols, nx)

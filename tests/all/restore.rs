@@ -510,7 +510,9 @@ fn table_cells(preset: &'static str, kind: &'static str) -> Vec<Cell> {
         let instance = eoir::detector::DetectorInstance::new(model, 5).unwrap();
         found.defects = found
             .defects
-            .union(&BadPixelMap::from_mask(instance.defect_map().mapv(|c| c != 0)))
+            .union(&BadPixelMap::from_mask(
+                instance.defect_map().mapv(|c| c != 0),
+            ))
             .unwrap();
         // DN = gain·e + black on the good pixels, by least squares.
         let good: Vec<(f64, f64)> = e
@@ -521,9 +523,7 @@ fn table_cells(preset: &'static str, kind: &'static str) -> Vec<Cell> {
             .map(|((e, d), _)| (*e, *d))
             .collect();
         let m = good.len() as f64;
-        let (se, sd) = good
-            .iter()
-            .fold((0.0, 0.0), |a, (e, d)| (a.0 + e, a.1 + d));
+        let (se, sd) = good.iter().fold((0.0, 0.0), |a, (e, d)| (a.0 + e, a.1 + d));
         let (me, md) = (se / m, sd / m);
         let (sxy, sxx) = good.iter().fold((0.0, 0.0), |a, (e, d)| {
             (a.0 + (e - me) * (d - md), a.1 + (e - me) * (e - me))
@@ -539,7 +539,14 @@ fn table_cells(preset: &'static str, kind: &'static str) -> Vec<Cell> {
             saturated: (found.saturated.count() > 0).then_some(&found.saturated),
         };
         let transfer = SensorTransfer::new(&s).unwrap();
-        let first = restore(input.view(), &transfer, NoiseRule::Auto, Method::Auto, masks).unwrap();
+        let first = restore(
+            input.view(),
+            &transfer,
+            NoiseRule::Auto,
+            Method::Auto,
+            masks,
+        )
+        .unwrap();
         let (py, px) = first.padded_shape;
         let cached = CachedTransfer(
             eoir::processing::wiener::DetectorTransfer::on_grid(&transfer, py, px).unwrap(),
@@ -581,7 +588,9 @@ fn table_cells(preset: &'static str, kind: &'static str) -> Vec<Cell> {
             (f(&input), f(&first.image))
         });
         // The image's own noise against the sensor model's at the image's mean level.
-        let sigma = immerkaer_sigma(input.view(), Some(&noise_mask)).unwrap().sigma;
+        let sigma = immerkaer_sigma(input.view(), Some(&noise_mask))
+            .unwrap()
+            .sigma;
         let mean_e = input.mean().unwrap() / gain;
         let model_sigma = (gain * gain * model.temporal_noise_e(mean_e.max(0.0)).powi(2)
             + model.quantisation_noise_dn().powi(2))
@@ -649,10 +658,16 @@ fn restoration_table_never_loses_and_tracks_the_best_constant() {
             for c in table_cells(preset, kind) {
                 let id = format!("{} × {} at {} noise", c.preset, c.scene, c.noise);
                 if c.psnr_restored < c.psnr_input {
-                    failures.push(format!("{id}: PSNR {:.2} < input {:.2}", c.psnr_restored, c.psnr_input));
+                    failures.push(format!(
+                        "{id}: PSNR {:.2} < input {:.2}",
+                        c.psnr_restored, c.psnr_input
+                    ));
                 }
                 if c.psnr_restored < c.psnr_best_constant - 0.5 {
-                    failures.push(format!("{id}: PSNR {:.2} vs best constant {:.2}", c.psnr_restored, c.psnr_best_constant));
+                    failures.push(format!(
+                        "{id}: PSNR {:.2} vs best constant {:.2}",
+                        c.psnr_restored, c.psnr_best_constant
+                    ));
                 }
                 if let Some((a, b)) = c.mtf50 {
                     if b < a || a.is_nan() != b.is_nan() {
