@@ -23,6 +23,9 @@
 //! `P_n √(Σ w²)`, and 0 otherwise. Without that test, an annulus where H ≈ 1e−5 turned
 //! the noise's chance excess into an object power of 1e10·P_n, and the input (W = 1, bias
 //! factor (1 − H)²) then beat every filter (bias factor ≈ 1) on that phantom power alone.
+//! The pooled value is further capped by the least mean object power measured reliably
+//! (|H| ≥ [`RISK_MIN_H`]) in any annulus at lower frequency (scene spectra fall with
+//! frequency; [`bins`]).
 //!
 //! Why not a fitted model there: an earlier version used the power law `A ρ^β` that
 //! the classic Wiener filter is built from. On a bar target the harmonics lift the fit far
@@ -153,6 +156,26 @@ pub fn bins(measured: &[Measured], pn: f64) -> Vec<Bin> {
             excess[a] = 0.0;
         }
     }
+    // The object power of an annulus is not allowed to exceed the least mean object
+    // power measured reliably (|H| ≥ RISK_MIN_H) in any annulus at lower frequency: the
+    // spectra of scenes fall with frequency (natural scenes as ρ^−2…−3, van der Schaaf &
+    // van Hateren 1996; a target's harmonics under their envelope). Without it, power
+    // that H did not put there (the mirror pads' seams, aliasing) divided by a tiny ΣwH²
+    // posed as object power.
+    let mut reliable = [(0.0f64, 0.0f64); ANNULI];
+    for m in measured.iter().filter(|m| m.h.abs() >= RISK_MIN_H) {
+        let a = annulus(m.rho);
+        reliable[a].0 += m.w * (m.power - pn) / (m.h * m.h);
+        reliable[a].1 += m.w;
+    }
+    let mut cap = [f64::INFINITY; ANNULI];
+    let mut running = f64::INFINITY;
+    for a in 0..ANNULI {
+        if reliable[a].1 > 0.0 {
+            running = running.min((reliable[a].0 / reliable[a].1).max(0.0));
+        }
+        cap[a] = running;
+    }
     measured
         .iter()
         .map(|m| {
@@ -161,7 +184,7 @@ pub fn bins(measured: &[Measured], pn: f64) -> Vec<Bin> {
             } else {
                 let a = annulus(m.rho);
                 if h2[a] > 0.0 {
-                    excess[a] / h2[a]
+                    (excess[a] / h2[a]).min(cap[a])
                 } else {
                     0.0
                 }
