@@ -515,16 +515,20 @@ pub fn restore(
         (NoiseRule::Constant(x), _) => ("constant", Some(Array2::from_elem(spec.dim(), x))),
         (_, None) => unreachable_rule()?,
         (_, Some(var)) => {
+            // The error estimate takes the padded frame's own noise power; the classic
+            // Wiener filter keeps its definition `P_n = N·σ²` (N the padded frame's
+            // pixels) for its spectrum fit and NSR, as before the automatic rule.
             let pn = npix * var;
+            let pn_wiener = (ny * nx) as f64 * var;
             let power = spec.mapv(|g| g.norm_sqr());
             let rho = radial_frequency(ny, nx);
-            let fit = match fit_object_spectrum(&power, &h, &rho, pn, nx) {
+            let fit = match fit_object_spectrum(&power, &h, &rho, pn_wiener, nx) {
                 Err(e) if method == Method::Wiener => return Err(e),
                 fit => fit.ok(),
             };
             exponent = fit.map(|(_, beta)| beta);
             let wiener_r = |j: usize, k: usize| match fit {
-                Some((a, beta)) => pn / (a * rho[[j, k]].powf(beta)),
+                Some((a, beta)) => pn_wiener / (a * rho[[j, k]].powf(beta)),
                 None => f64::INFINITY,
             };
             let g = FrequencyGrid::real_fft(ny, nx, 1.0, 1.0);
