@@ -47,7 +47,8 @@
 //! `w·x_a + (1 − w)·x_b`, whose noise variance is `(w² + (1 − w)²)σ²` (σ² where both taps
 //! are the same pixel), so the noise power per DFT coefficient of the padded frame is
 //! `P_n = σ² Σ_pixels v = σ² (Σ_j v_j)(Σ_k v_k)` (Parseval; the taps are separable),
-//! not `N σ²`.
+//! not `N σ²`. This is the noise power of the error estimate; the classic Wiener filter
+//! keeps `P_n = N σ²` for its spectrum fit and NSR.
 //!
 //! **Sharpness guard.** Wherever the sensor passes a frequency at |H| ≥ ½, R is lowered
 //! to at most |H|(1 − |H|), so the restored transfer function `H²/(H² + R)` is at least
