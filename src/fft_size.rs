@@ -29,6 +29,15 @@ pub fn next_fast_even_len(n: usize) -> usize {
     m
 }
 
+/// The smallest multiple of `k` at least `n` whose quotient by `k` is 5-smooth:
+/// `k·next_fast_len(⌈n/k⌉)` (a 5-smooth length itself when `k` is). An axis sampled every
+/// k-th sample then has a lattice of whole periods, so its inverse can be folded
+/// (`imaging::lattice`). `k = 0` is taken as 1.
+pub fn next_fast_multiple(n: usize, k: usize) -> usize {
+    let k = k.max(1);
+    k * next_fast_len(n.div_ceil(k))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -57,5 +66,28 @@ mod tests {
             assert_eq!(next_fast_even_len(n), even, "{n}");
         }
         assert_eq!(next_fast_len(0), 1);
+    }
+
+    /// The fast multiple is a multiple of k, at least n, with a 5-smooth quotient, and no
+    /// smaller such length exists (brute force).
+    #[test]
+    fn fast_multiples_are_the_smallest() {
+        let smooth = |m: usize| {
+            let mut r = m;
+            for p in [2, 3, 5] {
+                while r % p == 0 {
+                    r /= p;
+                }
+            }
+            r == 1
+        };
+        for k in 1..8usize {
+            for n in 1..300usize {
+                let m = next_fast_multiple(n, k);
+                assert!(m >= n && m % k == 0 && smooth(m / k), "{n} {k} -> {m}");
+                let brute = (n..).find(|&x| x % k == 0 && smooth(x / k)).unwrap();
+                assert_eq!(m, brute, "{n} {k}");
+            }
+        }
     }
 }

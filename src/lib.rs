@@ -36,6 +36,7 @@
 //! - [`display`]: display stretches and colour maps for the pictures a person looks at.
 //! - [`pipeline::report_html`]: the pictures of a run and the self-contained `report.html`.
 //! - [`pipeline`]: the whole chain, stage by stage, and the products it writes.
+//! - [`merit`]: figures of merit (3-D noise, GIQE 5, MRTD, TTP), analytic and measured.
 //!
 //! ```no_run
 //! use eoir::{io, pipeline, sensor::{presets, Sensor}};
@@ -71,6 +72,7 @@ pub mod io;
 pub mod limits;
 pub mod los;
 pub mod memory;
+pub mod merit;
 pub mod motion;
 pub mod optics;
 pub mod pipeline;

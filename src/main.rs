@@ -44,6 +44,11 @@ enum Command {
     Nuc(nuc::NucArgs),
     /// Find random telegraph (RTS) pixels in a dark sequence (a run's `dn_stack.npy`).
     Rts(cli::rts::RtsArgs),
+    /// Figures of merit of a sensor (3-D noise, NETD, MTF, MRTD, GIQE 5, TTP ranges),
+    /// analytic and measured on simulated frames.
+    Assess(cli::assess::AssessArgs),
+    /// Trade study: the analytic figures of merit over a grid of sensor parameters.
+    Sweep(cli::sweep::SweepArgs),
 }
 
 fn main() -> ExitCode {
@@ -64,6 +69,8 @@ fn main() -> ExitCode {
         Command::Characterize(args) => characterize::characterize(args),
         Command::Nuc(args) => nuc::nuc(args),
         Command::Rts(args) => cli::rts::rts(args),
+        Command::Assess(args) => cli::assess::assess(args),
+        Command::Sweep(args) => cli::sweep::sweep(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

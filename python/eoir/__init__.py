@@ -45,6 +45,7 @@ from ._toolbox import (
     nuc_fit,
     read_image,
     restore,
+    restore_sequence,
     simulate_acquisition_set,
 )
 
@@ -65,6 +66,7 @@ __all__ = [
     "run",
     "mtf",
     "restore",
+    "restore_sequence",
     "edge_mtf",
     "nuc_fit",
     "find_rts_pixels",

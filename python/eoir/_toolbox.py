@@ -123,6 +123,102 @@ def restore(
     )
 
 
+def restore_sequence(
+    path_or_array,
+    sensor: Optional[Sensor] = None,
+    *,
+    upsample: int = 2,
+    register: str = "phase",
+    noise: str = "auto",
+    nsr: Optional[float] = None,
+    black_level: Optional[float] = None,
+):
+    """Multi-frame restoration of a sequence (``eoir restore DIR``): register the frames,
+    shift-and-add them onto a grid ``upsample`` times finer, Wiener-restore with the
+    sensor's transfer function on that grid (docs/multi-frame.md).
+
+    Parameters
+    ----------
+    path_or_array : str, os.PathLike, numpy.ndarray or sequence of 2-D arrays
+        An eoir sequence output folder (its ``dn_stack.npy``, ``config.toml`` and
+        ``los.csv``), a ``.npy`` stack, or frames of DN ``[frame, row, col]``.
+    sensor : Sensor, optional
+        The recording sensor (default: a folder's own ``config.toml``).
+    upsample : int, default 2
+        The fine grid's factor R (1 to 8).
+    register : {"phase", "truth"}, default "phase"
+        Phase correlation, or the folder's ``los.csv`` truth table.
+    noise : {"auto", "model"}, default "auto"
+        ``auto``: the scatter of the samples within the fine cells; ``model``: the
+        sensor's temporal noise. ``nsr`` gives a constant instead.
+
+    Returns
+    -------
+    dict
+        ``restored`` (float32 ``[R·rows, R·cols]``, DN) and ``report`` (restore.json's
+        fields).
+    """
+    truth = None
+    if isinstance(path_or_array, (str, os.PathLike)):
+        path = os.fspath(path_or_array)
+        folder = path if os.path.isdir(path) else os.path.dirname(path) or "."
+        stack_path = os.path.join(path, "dn_stack.npy") if os.path.isdir(path) else path
+        if not os.path.isfile(stack_path):
+            raise ValueError(f"{path}: no dn_stack.npy (not an eoir sequence output folder)")
+        frames = np.load(stack_path)
+        if sensor is None:
+            config = os.path.join(folder, "config.toml")
+            if not os.path.isfile(config):
+                raise ValueError(f"{path}: no config.toml beside the stack; give `sensor`")
+            from ._core import load_sensor
+            sensor = load_sensor(config)
+        los = os.path.join(folder, "los.csv")
+        if os.path.isfile(los):
+            table = np.genfromtxt(los, delimiter=",", names=True)
+            table = np.atleast_1d(table)
+            truth = [(float(x - table["dx_px"][0]), float(y - table["dy_px"][0]))
+                     for x, y in zip(table["dx_px"], table["dy_px"])]
+    else:
+        if isinstance(path_or_array, np.ndarray):
+            frames = path_or_array
+        else:
+            shapes = {np.shape(f) for f in path_or_array}
+            if len(shapes) > 1:
+                raise ValueError(
+                    f"invalid parameter `frames`: frames of different sizes {sorted(shapes)}; "
+                    "a sequence needs frames of one size"
+                )
+            frames = np.stack([np.asarray(f) for f in path_or_array]) if shapes else np.zeros((0, 0, 0))
+    if sensor is None:
+        raise ValueError("invalid parameter `sensor`: None; give the sensor that recorded the frames")
+    frames = np.asarray(frames)
+    if frames.ndim != 3:
+        raise ValueError(f"invalid parameter `frames` = array of shape {frames.shape}: [frame, row, col]")
+    if register not in ("phase", "truth"):
+        raise ValueError(f"invalid parameter `register` = {register!r}: \"phase\" or \"truth\"")
+    shifts = None
+    if register == "truth":
+        if truth is None:
+            raise ValueError("register=\"truth\" needs an eoir sequence folder with los.csv")
+        if len(truth) != frames.shape[0]:
+            raise ValueError(
+                f"los.csv: {len(truth)} lines for {frames.shape[0]} frames; register=\"truth\" "
+                "needs one line per frame (a global shutter)"
+            )
+        shifts = truth
+    if isinstance(upsample, bool) or int(upsample) != upsample or upsample < 0:
+        raise ValueError(f"invalid parameter `upsample` = {upsample!r}: an integer from 1 to 8")
+    d = _eoir.restore_sequence(
+        sensor, np.ascontiguousarray(frames, dtype=np.float64), shifts, int(upsample),
+        str(noise), _checks.real("nsr", nsr), _checks.real("black_level", black_level),
+    )
+    report = json.loads(d["report_json"])
+    if truth is not None and len(truth) == len(report["shifts_px"]):
+        res = [max(abs(e[0] - t[0]), abs(e[1] - t[1])) for e, t in zip(report["shifts_px"], truth)]
+        report["shift_residual_vs_truth_max_px"] = max(res)
+    return {"restored": d["restored"], "report": report}
+
+
 def edge_mtf(image, *, roi: Optional[Sequence[int]] = None, sensor: Optional[Sensor] = None):
     """ISO 12233 slanted-edge MTF of an image (``eoir edge-mtf``).
 

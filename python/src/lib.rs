@@ -1597,6 +1597,96 @@ fn set_max_memory_bytes(bytes: u64) -> PyResult<()> {
 }
 
 /// The native module.
+/// Multi-frame restoration of a sequence (as `eoir restore DIR`): `stack` f64
+/// `[frame, row, col]` of DN (NaN marks a pixel to skip), `shifts` `[(dx, dy)]` per frame
+/// relative to frame 0 or None (phase correlation), `upsample` the fine grid's factor,
+/// `noise` "auto" (the in-cell sample scatter) or "model" (the sensor's temporal noise),
+/// or a constant `nsr`. Returns `{restored (f32, [R·rows, R·cols], DN), report_json}`.
+#[pyfunction]
+#[pyo3(signature = (sensor, stack, shifts=None, upsample=2, noise="auto", nsr=None, black_level=None))]
+#[allow(clippy::too_many_arguments)]
+fn restore_sequence<'py>(
+    py: Python<'py>,
+    sensor: &PySensor,
+    stack: PyReadonlyArray3<'py, f64>,
+    shifts: Option<Vec<(f64, f64)>>,
+    upsample: usize,
+    noise: &str,
+    nsr: Option<f64>,
+    black_level: Option<f64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    use eoir::processing::multi_frame::{restore_sequence as restore_stack, SequenceNoise};
+    use eoir::processing::wiener::SensorTransfer;
+    let sensor = &sensor.inner;
+    let stack = stack.as_array().to_owned();
+    let (frames, rows, cols) = stack.dim();
+    if (rows, cols) != (sensor.detector.rows, sensor.detector.cols) {
+        return Err(PyValueError::new_err(format!(
+            "invalid parameter `stack` = frames of {rows} x {cols} pixels (rows x cols): sensor `{}` records {} x {}; restore a sequence with the sensor that recorded it",
+            sensor.name, sensor.detector.rows, sensor.detector.cols
+        )));
+    }
+    if !matches!(noise, "auto" | "model") {
+        return Err(PyValueError::new_err(format!(
+            "invalid parameter `noise` = {:?}: \"auto\" or \"model\"",
+            eoir::limits::escape_token(noise)
+        )));
+    }
+    let noise = noise.to_string();
+    let (restored, report) = detached(py, move || {
+        eoir::limits::check_alloc(
+            "restoring the sequence",
+            &[
+                ("rows", (rows * upsample.max(1)) as u64),
+                ("columns", (cols * upsample.max(1)) as u64),
+            ],
+            RESTORE_BYTES_PER_PIXEL,
+        )?;
+        let model = sensor.detector();
+        let black = black_level.unwrap_or_else(|| model.expected_dn(0.0));
+        if !black.is_finite() || black < 0.0 {
+            return Err(eoir::Error::param("black_level", black, "a finite DN >= 0"));
+        }
+        let signal = stack.mapv(|v| v - black);
+        let rule = match (nsr, noise.as_str()) {
+            (Some(x), _) => SequenceNoise::Constant(x),
+            (None, "model") => {
+                let finite: Vec<f64> = signal.iter().copied().filter(|v| v.is_finite()).collect();
+                let mean = finite.iter().sum::<f64>() / finite.len().max(1) as f64;
+                let mean_e = (mean / model.gain_dn_per_e()).max(0.0);
+                SequenceNoise::Model {
+                    frame_variance: model.temporal_noise_dn(mean_e).powi(2)
+                        + model.quantisation_noise_dn().powi(2),
+                }
+            }
+            (None, _) => SequenceNoise::Scatter,
+        };
+        let transfer = SensorTransfer::new(sensor)?;
+        let r = restore_stack(signal.view(), shifts.as_deref(), upsample, &transfer, rule)?;
+        let restored = r.restoration.image.mapv(|v| (v + black) as f32);
+        let report = serde_json::json!({
+            "sensor": sensor.name,
+            "frames": frames,
+            "upsample": upsample,
+            "registration": if shifts.is_some() { "given" } else { "phase" },
+            "shifts_px": r.shifts.iter().map(|t| [t.dx_px, t.dy_px]).collect::<Vec<_>>(),
+            "black_level_dn": black,
+            "holes_filled": r.fine.holes_filled,
+            "noise_rule": match rule { SequenceNoise::Scatter => "scatter", SequenceNoise::Model { .. } => "model", SequenceNoise::Constant(_) => "constant" },
+            "fine_noise_variance_dn2": r.fine_noise_variance,
+            "sample_variance_dn2": r.fine.sample_variance,
+            "nsr_median": r.restoration.nsr_median,
+        });
+        let text = serde_json::to_string(&report)
+            .map_err(|e| eoir::Error::param("report", "restore_sequence", e.to_string()))?;
+        Ok((restored, text))
+    })?;
+    let d = PyDict::new(py);
+    d.set_item("restored", restored.into_pyarray(py))?;
+    d.set_item("report_json", report)?;
+    Ok(d)
+}
+
 #[pymodule]
 fn _eoir(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySensor>()?;
@@ -1611,6 +1701,7 @@ fn _eoir(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(covering_params, m)?)?;
     m.add_class::<PyNuc>()?;
     m.add_function(wrap_pyfunction!(restore, m)?)?;
+    m.add_function(wrap_pyfunction!(restore_sequence, m)?)?;
     m.add_function(wrap_pyfunction!(edge_mtf, m)?)?;
     m.add_function(wrap_pyfunction!(nuc_fit, m)?)?;
     m.add_function(wrap_pyfunction!(find_rts_pixels, m)?)?;

@@ -2,6 +2,7 @@
 
 use anyhow::{bail, Context, Result};
 
+pub mod assess;
 pub mod characterize;
 pub mod defects;
 pub mod edge_mtf;
@@ -9,10 +10,12 @@ pub mod mtf;
 pub mod nuc;
 pub mod progress;
 pub mod restore;
+pub mod restore_sequence;
 pub mod rts;
 pub mod run;
 pub mod scene;
 pub mod sensors;
+pub mod sweep;
 pub mod temperature;
 
 /// Parses `H,V` (two numbers).

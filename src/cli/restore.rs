@@ -116,7 +116,8 @@ fn read_exr_single(path: &Path) -> Result<Array2<f64>> {
 /// Arguments of `eoir restore`.
 #[derive(Debug, clap::Args)]
 pub struct RestoreArgs {
-    /// Recorded image: 16-bit PNG/TIFF of DN, or f32 TIFF/EXR of radiance or electrons.
+    /// Recorded image: 16-bit PNG/TIFF of DN, or f32 TIFF/EXR of radiance or electrons;
+    /// or a sequence: an eoir output folder with dn_stack.npy, or a .npy stack of DN.
     pub input: PathBuf,
     #[command(flatten)]
     pub sensor: SensorArgs,
@@ -143,6 +144,8 @@ pub struct RestoreArgs {
     /// Output directory (restored.tiff, restored.png, restore.json).
     #[arg(short, long)]
     pub output: PathBuf,
+    #[command(flatten)]
+    pub sequence: super::restore_sequence::SequenceArgs,
 }
 
 /// Mean, standard deviation, minimum and maximum.
@@ -172,6 +175,10 @@ fn display_stretch(a: &Array2<f64>) -> ndarray::Array2<u8> {
 
 /// `eoir restore`.
 pub fn restore(args: RestoreArgs) -> Result<()> {
+    if super::restore_sequence::is_sequence(&args.input) {
+        return super::restore_sequence::restore_sequence(&args);
+    }
+    super::restore_sequence::refuse_for_single_image(&args.sequence)?;
     let sensor = args.sensor.load()?;
     // The size from the header first: a mismatched (or huge) image is refused undecoded.
     let (rows, cols) = raster::image_dimensions(&args.input)?;

@@ -23,6 +23,7 @@
 
 mod accumulate;
 pub mod fft;
+pub mod lattice;
 pub mod motion;
 pub mod otf_table;
 pub use accumulate::{accumulate_chunk, RadialGrid};
@@ -55,6 +56,7 @@ use crate::sensor::{FrequencyGrid, Sensor, SystemOtf};
 use crate::spectrum::Spectrum;
 
 use fft::{FftFloat, FftPrecision, RealFft2, RowStores, SpectrumBuffer};
+use lattice::{ColumnFactors, LatticeInverse};
 use otf_table::{BandProfile, ChunkProfile, RadialTables, CHUNK_LANES};
 pub use padding::pad_width;
 use padding::{FramePad, PadMap};
@@ -280,6 +282,9 @@ pub struct Imager {
     /// The radial taper of the OTF at the scene grid's Nyquist circle, when the optics
     /// pass more than the grid holds ([`scene_band`]); part of the achromatic product.
     taper: Option<GridTaper>,
+    /// The inverse on the detector's lattice, for an integer sampling ratio above 1 (the
+    /// padded lengths are whole multiples of it): every frame's inverse transform.
+    lattice: Option<LatticeInverse>,
 }
 
 /// A chunk's row spectra larger than this are written with non-temporal stores
@@ -339,12 +344,20 @@ impl Imager {
             wrap_tolerance,
             4 * meta.cols.max(8),
         );
+        // An integer ratio k pads to a multiple of k, so that the detector's samples form a
+        // lattice of whole periods and the inverse can be folded onto it (`lattice`).
+        let integer = sampling.integer;
         for (ax, p, n) in [
             (&mut sampling.y, py, meta.rows),
             (&mut sampling.x, px, meta.cols),
         ] {
             ax.pad_before = p;
-            ax.padded_len = next_fast_len(n + 2 * p);
+            let k = if integer {
+                ax.integer_ratio().unwrap_or(1)
+            } else {
+                1
+            };
+            ax.padded_len = crate::fft_size::next_fast_multiple(n + 2 * p, k);
         }
         crate::limits::check_run(
             (sampling.y.padded_len, sampling.x.padded_len),
@@ -353,6 +366,17 @@ impl Imager {
             1,
         )?;
         let fft = RealFft2::<f64>::new(sampling.y.padded_len, sampling.x.padded_len);
+        let lattice = if sampling.integer {
+            LatticeInverse::new(
+                (sampling.y.padded_len, sampling.x.padded_len),
+                (
+                    sampling.y.integer_ratio().unwrap_or(1),
+                    sampling.x.integer_ratio().unwrap_or(1),
+                ),
+            )
+        } else {
+            None
+        };
         let fft32 = RealFft2::<f32>::new(sampling.y.padded_len, sampling.x.padded_len);
         let grid = FrequencyGrid::real_fft(sampling.y.padded_len, sampling.x.padded_len, dy, dx);
         let pad = FramePad {
@@ -407,6 +431,7 @@ impl Imager {
             frames: FramePool::default(),
             profiles: ProfileCache::new(active.len().div_ceil(BANDS_PER_CHUNK)),
             taper,
+            lattice,
         })
     }
 
@@ -837,6 +862,36 @@ impl Imager {
         let start_y = sy.position(0);
         let start_x = sx.position(0);
         let (fy, fx) = (start_y - start_y.floor(), start_x - start_x.floor());
+        let (y0, x0) = (start_y.floor() as usize, start_x.floor() as usize);
+        let (ky, kx) = (
+            sy.integer_ratio().unwrap_or(1),
+            sx.integer_ratio().unwrap_or(1),
+        );
+        let wanted: Vec<usize> = (0..sy.detector_len).map(|i| y0 + i * ky).collect();
+        if let Some(lattice) = &self.lattice {
+            // The sub-sample offsets as phases: along y folded with the columns, along x
+            // on each row's spectrum (the same factors as the full route below).
+            let ry: Vec<Complex64> = (0..ny).map(|v| shift_phase(ny, v, fy)).collect();
+            let factors = ColumnFactors {
+                per_column: None,
+                per_row: (fy != 0.0).then_some(&ry[..]),
+            };
+            let starts = vec![x0; wanted.len()];
+            return lattice.sample(
+                acc_t,
+                &factors,
+                &wanted,
+                &starts,
+                sx.detector_len,
+                |_, row| {
+                    if fx != 0.0 {
+                        for (u, z) in row.iter_mut().enumerate() {
+                            *z *= shift_phase(nx, u, fx);
+                        }
+                    }
+                },
+            );
+        }
         if fy != 0.0 || fx != 0.0 {
             let ry: Vec<Complex64> = (0..ny).map(|v| shift_phase(ny, v, fy)).collect();
             acc_t.par_chunks_mut(ny).enumerate().for_each(|(u, col)| {
@@ -847,12 +902,6 @@ impl Imager {
                 }
             });
         }
-        let (y0, x0) = (start_y.floor() as usize, start_x.floor() as usize);
-        let (ky, kx) = (
-            sy.integer_ratio().unwrap_or(1),
-            sx.integer_ratio().unwrap_or(1),
-        );
-        let wanted: Vec<usize> = (0..sy.detector_len).map(|i| y0 + i * ky).collect();
         let mut img = Array2::<f64>::zeros((wanted.len(), nx));
         self.fft.inverse_transposed_rows(acc_t, &wanted, &mut img);
         Array2::from_shape_fn((sy.detector_len, sx.detector_len), |(i, j)| {

@@ -22,6 +22,7 @@ use ndarray::Array2;
 use num_complex::Complex64;
 use rayon::prelude::*;
 
+use super::lattice::ColumnFactors;
 use super::sampling::shift_phase;
 use super::Imager;
 use crate::error::{Error, Result};
@@ -126,43 +127,73 @@ pub fn apply_path_otf(
     path: &WindowPath,
 ) {
     let (rows, cols) = frame;
-    let half = cols / 2 + 1;
     if rows == 0 || cols == 0 {
         return;
     }
-    debug_assert_eq!(spec_t.len(), rows * half);
-    debug_assert_eq!((grid.fy.len(), grid.fx.len()), (rows, half));
-    let nyquist_col = (cols % 2 == 0).then_some(cols / 2);
-    let nyquist_row = (rows % 2 == 0).then_some(rows / 2);
-    let segments = Segments::of(path);
+    debug_assert_eq!(spec_t.len(), rows * (cols / 2 + 1));
+    let columns = PathColumns::new(frame, grid, path);
     let zero = Complex64::new(0.0, 0.0);
     spec_t.par_chunks_mut(rows).enumerate().for_each_init(
-        || (vec![zero; rows], vec![zero; rows]),
-        |(h, h2), (u, col)| {
-            let fx = grid.fx[u];
-            segments.column(fx, &grid.fy, h);
-            let both_x = nyquist_col == Some(u);
-            if both_x {
-                segments.column(-fx, &grid.fy, h2);
-                for (a, b) in h.iter_mut().zip(h2.iter()) {
-                    *a = 0.5 * (*a + *b);
-                }
-            }
-            if let Some(v) = nyquist_row {
-                let fy = grid.fy[v];
-                let xs: &[f64] = if both_x { &[1.0, -1.0] } else { &[1.0] };
-                let sum: Complex64 = xs
-                    .iter()
-                    .map(|s| path.otf(s * fx, fy) + path.otf(s * fx, -fy))
-                    .sum();
-                h[v] = sum / (2.0 * xs.len() as f64);
-            }
+        || vec![zero; rows],
+        |h, (u, col)| {
+            columns.fill(u, h);
             for (a, f) in col.iter_mut().zip(h.iter()) {
                 *a *= f;
             }
         },
     );
 }
+
+/// A path's transfer function column by column on a frame's half-plane frequency grid
+/// (see [`apply_path_otf`]).
+struct PathColumns<'a> {
+    segments: Segments,
+    grid: &'a FrequencyGrid,
+    path: &'a WindowPath,
+    nyquist_col: Option<usize>,
+    nyquist_row: Option<usize>,
+}
+
+impl<'a> PathColumns<'a> {
+    fn new(frame: (usize, usize), grid: &'a FrequencyGrid, path: &'a WindowPath) -> Self {
+        let (rows, cols) = frame;
+        debug_assert_eq!((grid.fy.len(), grid.fx.len()), (rows, cols / 2 + 1));
+        PathColumns {
+            segments: Segments::of(path),
+            grid,
+            path,
+            nyquist_col: (cols % 2 == 0).then_some(cols / 2),
+            nyquist_row: (rows % 2 == 0).then_some(rows / 2),
+        }
+    }
+
+    /// Column u's transfer function at every row frequency, into `h`.
+    fn fill(&self, u: usize, h: &mut [Complex64]) {
+        let (grid, path) = (self.grid, self.path);
+        let fx = grid.fx[u];
+        self.segments.column(fx, &grid.fy, h);
+        let both_x = self.nyquist_col == Some(u);
+        if both_x {
+            let mut h2 = vec![Complex64::new(0.0, 0.0); h.len()];
+            self.segments.column(-fx, &grid.fy, &mut h2);
+            for (a, b) in h.iter_mut().zip(h2.iter()) {
+                *a = 0.5 * (*a + *b);
+            }
+        }
+        if let Some(v) = self.nyquist_row {
+            let fy = grid.fy[v];
+            let xs: &[f64] = if both_x { &[1.0, -1.0] } else { &[1.0] };
+            let sum: Complex64 = xs
+                .iter()
+                .map(|s| path.otf(s * fx, fy) + path.otf(s * fx, -fy))
+                .sum();
+            h[v] = sum / (2.0 * xs.len() as f64);
+        }
+    }
+}
+
+/// Interleaved recurrences in [`Segments::column`].
+const LANES: usize = 4;
 
 /// A path's segments as the column evaluation uses them.
 struct Segments {
@@ -209,24 +240,43 @@ impl Segments {
                 };
                 // Phase exp(−2πi f·m) and e^{iπ f·Δ} (whose imaginary part over π f·Δ is the
                 // sinc), both advanced by a constant factor per row.
-                let mut ph = Complex64::from_polar(w, -2.0 * PI * (fx * m[0] + f0 * m[1]));
+                let ph = Complex64::from_polar(w, -2.0 * PI * (fx * m[0] + f0 * m[1]));
                 let ph_step = Complex64::from_polar(1.0, -2.0 * PI * step * m[1]);
-                let mut a = fx * d[0] + f0 * d[1];
+                let a0 = fx * d[0] + f0 * d[1];
                 let a_step = step * d[1];
-                let mut e = Complex64::from_polar(1.0, PI * a);
                 let e_step = Complex64::from_polar(1.0, PI * a_step);
-                for o in &mut out[start..end] {
+                // LANES interleaved recurrences (lane l at rows l, l + LANES, …), so that
+                // the multiplications of successive rows do not wait for each other.
+                let mut phs = [ph; LANES];
+                let mut es = [Complex64::from_polar(1.0, PI * a0); LANES];
+                let mut as_ = [a0; LANES];
+                for l in 1..LANES {
+                    phs[l] = phs[l - 1] * ph_step;
+                    es[l] = es[l - 1] * e_step;
+                    as_[l] = a0 + l as f64 * a_step;
+                }
+                let (ph_jump, e_jump) = (ph_step.powu(LANES as u32), e_step.powu(LANES as u32));
+                let a_jump = LANES as f64 * a_step;
+                let sinc = |e: Complex64, a: f64| {
                     // Near a = 0 the ratio loses digits: the series is exact to 1e-16 there.
                     let x = PI * a;
-                    let sinc = if x.abs() < 1e-3 {
+                    if x.abs() < 1e-3 {
                         1.0 - x * x / 6.0 * (1.0 - x * x / 20.0)
                     } else {
                         e.im / x
-                    };
-                    *o += ph * sinc;
-                    ph *= ph_step;
-                    e *= e_step;
-                    a += a_step;
+                    }
+                };
+                let mut chunks = out[start..end].chunks_exact_mut(LANES);
+                for c in &mut chunks {
+                    for l in 0..LANES {
+                        c[l] += phs[l] * sinc(es[l], as_[l]);
+                        phs[l] *= ph_jump;
+                        es[l] *= e_jump;
+                        as_[l] += a_jump;
+                    }
+                }
+                for (l, o) in chunks.into_remainder().iter_mut().enumerate() {
+                    *o += phs[l] * sinc(es[l], as_[l]);
                 }
             }
         }
@@ -306,15 +356,22 @@ impl Imager {
                 })
                 .collect();
             self.check_inside(&rows)?;
-            scratch.clear();
-            scratch.extend_from_slice(spectrum);
-            if let Some(path) = &g.blur {
-                let frame = (sy.padded_len, sx.padded_len);
-                apply_path_otf(scratch, frame, &self.grid, path);
-            }
             if self.sampling.integer {
-                self.sample_rows_integer(scratch, &rows, row_tolerance_px, &mut out);
+                self.sample_rows_integer(
+                    spectrum,
+                    g.blur.as_ref(),
+                    &rows,
+                    row_tolerance_px,
+                    scratch,
+                    &mut out,
+                );
             } else {
+                scratch.clear();
+                scratch.extend_from_slice(spectrum);
+                if let Some(path) = &g.blur {
+                    let frame = (sy.padded_len, sx.padded_len);
+                    apply_path_otf(scratch, frame, &self.grid, path);
+                }
                 self.sample_rows_trigonometric(scratch, &rows, &mut out);
             }
         }
@@ -355,15 +412,19 @@ impl Imager {
         Ok(())
     }
 
-    /// Integer detector/scene ratio: the rows of one group (their spectrum, blurred, in
-    /// `spec`, used as scratch between bins) sampled at their positions. Rows whose
-    /// fractional y positions lie within 2·`tolerance_px` (detector pixels) share a
-    /// column pass at their middle fraction; every row's x shift is exact.
+    /// Integer detector/scene ratio: the rows of one group sampled at their positions from
+    /// `spectrum` (the band sum, not changed) times the group's `blur`. Rows whose
+    /// fractional y positions lie within 2·`tolerance_px` (detector pixels) share a column
+    /// pass at their middle fraction; every row's x shift is exact. With the detector's
+    /// lattice ([`super::lattice`]) one bin reads the spectrum once, blur and phases
+    /// folded in; several bins blur a copy (`scratch`) once and fold it per bin.
     fn sample_rows_integer(
         &self,
-        spec: &mut [Complex64],
+        spectrum: &[Complex64],
+        blur: Option<&WindowPath>,
         rows: &[RowAt],
         tolerance_px: f64,
+        scratch: &mut Vec<Complex64>,
         out: &mut Array2<f64>,
     ) {
         let (sy, sx) = (&self.sampling.y, &self.sampling.x);
@@ -379,37 +440,73 @@ impl Imager {
                 _ => bins.push(vec![r]),
             }
         }
-        let single = bins.len() == 1;
-        let kept = (!single).then(|| spec.to_vec());
-        for (bi, bin) in bins.iter().enumerate() {
-            if bi > 0 {
-                if let Some(k) = &kept {
-                    spec.copy_from_slice(k);
-                }
+        let frame = (ny, nx);
+        let columns = blur.map(|p| PathColumns::new(frame, &self.grid, p));
+        let fill = |u: usize, h: &mut [Complex64]| {
+            if let Some(c) = &columns {
+                c.fill(u, h);
             }
+        };
+        // The blurred spectrum: the band sum itself when nothing blurs, fused into the fold
+        // for a single bin, else a blurred copy shared by the bins.
+        let fused = self.lattice.is_some() && bins.len() == 1;
+        let source: &[Complex64] = match blur {
+            Some(path) if !fused => {
+                scratch.clear();
+                scratch.extend_from_slice(spectrum);
+                apply_path_otf(scratch, frame, &self.grid, path);
+                scratch
+            }
+            _ => spectrum,
+        };
+        let mut work: Vec<Complex64> = Vec::new();
+        for bin in &bins {
             let lo = frac(bin[0].y);
             let hi = frac(bin[bin.len() - 1].y);
             let s = 0.5 * (lo + hi);
-            if s != 0.0 {
-                let ry: Vec<Complex64> = (0..ny).map(|v| shift_phase(ny, v, s)).collect();
-                spec.par_chunks_mut(ny).for_each(|col| {
-                    for (a, r) in col.iter_mut().zip(&ry) {
-                        *a *= r;
-                    }
-                });
-            }
+            let ry: Vec<Complex64> = (0..ny).map(|v| shift_phase(ny, v, s)).collect();
             let wanted: Vec<usize> = bin.iter().map(|r| (r.y - s).round() as usize).collect();
             let shifts: Vec<f64> = bin.iter().map(|r| frac(r.x0)).collect();
-            let mut img = Array2::<f64>::zeros((wanted.len(), nx));
-            self.fft
-                .inverse_transposed_rows_with(spec, &wanted, &mut img, |i, row| {
-                    shift_row(row, nx, shifts[i])
-                });
-            for (i, r) in bin.iter().enumerate() {
-                let x0 = r.x0.floor() as usize;
-                for j in 0..sx.detector_len {
-                    out[[r.row, j]] = img[[i, x0 + j * kx]];
+            let starts: Vec<usize> = bin.iter().map(|r| r.x0.floor() as usize).collect();
+            let img = match &self.lattice {
+                Some(lattice) => {
+                    let factors = ColumnFactors {
+                        per_column: (fused && blur.is_some()).then_some(&fill as _),
+                        per_row: (s != 0.0).then_some(&ry[..]),
+                    };
+                    lattice.sample(
+                        source,
+                        &factors,
+                        &wanted,
+                        &starts,
+                        sx.detector_len,
+                        |i, row| shift_row(row, nx, shifts[i]),
+                    )
                 }
+                None => {
+                    work.clear();
+                    work.extend_from_slice(source);
+                    if s != 0.0 {
+                        work.par_chunks_mut(ny).for_each(|col| {
+                            for (a, r) in col.iter_mut().zip(&ry) {
+                                *a *= r;
+                            }
+                        });
+                    }
+                    let mut full = Array2::<f64>::zeros((wanted.len(), nx));
+                    self.fft.inverse_transposed_rows_with(
+                        &mut work,
+                        &wanted,
+                        &mut full,
+                        |i, row| shift_row(row, nx, shifts[i]),
+                    );
+                    Array2::from_shape_fn((wanted.len(), sx.detector_len), |(i, j)| {
+                        full[[i, starts[i] + j * kx]]
+                    })
+                }
+            };
+            for (i, r) in bin.iter().enumerate() {
+                out.row_mut(r.row).assign(&img.row(i));
             }
         }
     }

@@ -18,16 +18,24 @@
 //!   choice among them (the input itself included).
 //! - [`edge_mtf`]: ISO 12233 slanted-edge MTF measurement.
 //! - [`noise_estimate`]: the white-noise level of one image (Immerkær 1996).
+//! - [`multi_frame`]: multi-frame restoration of a sequence (register, shift-and-add,
+//!   restore on the finer grid).
+//! - [`registration`]: sub-pixel translation between frames by phase correlation.
+//! - [`shift_and_add`]: registered frames accumulated on a finer grid, and its transfer
+//!   function.
 //!
 //! Frames stored as integers (`Array2<u16>` from an ADC) are converted with [`to_f64`].
 
 pub mod bad_pixels;
 pub mod edge_mtf;
+pub mod multi_frame;
 pub mod netd;
 pub mod noise_estimate;
 pub mod nuc;
 pub mod photon_transfer;
+pub mod registration;
 pub mod restore_rule;
+pub mod shift_and_add;
 pub mod temperature;
 pub mod wiener;
 
