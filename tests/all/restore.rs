@@ -174,6 +174,10 @@ fn restoration_of_a_bar_scene_gains_psnr_and_auto_is_near_the_best_constant() {
         restore(e.view(), &transfer, NoiseRule::Auto, Method::Auto, masks).unwrap()
     };
     let psnr_lib = psnr_db(lib_auto.image.view(), ideal.view()).unwrap();
+    eprintln!(
+        "auto chose {} from {:?}",
+        lib_auto.method, lib_auto.candidates
+    );
     let model_var = {
         let m = s.detector();
         m.temporal_noise_e(raw_e.mean().unwrap()).powi(2)
