@@ -83,6 +83,11 @@ pub struct RunReport {
     /// RTS pixels, persistence, drift); absent when none is on (docs/focal-plane.md).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub focal_plane: Option<FocalPlaneReport>,
+    /// The sensor's analytic figures of merit when the run was asked for them
+    /// (`eoir run --assess`; the same object as `eoir assess`'s `analytic`,
+    /// docs/figures-of-merit.md).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub figures_of_merit: Option<serde_json::Value>,
     /// How the run was executed (threads, frames imaged at once); like the timings, it
     /// does not change any product.
     pub execution: ExecutionReport,
@@ -511,6 +516,7 @@ impl RunReport {
             calibration: f.calibration,
             warnings: f.warnings,
             focal_plane: None,
+            figures_of_merit: None,
             execution: f.execution,
             timings_s: Timings {
                 read: f.imaging.read_s,

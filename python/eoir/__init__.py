@@ -38,6 +38,7 @@ from ._core import (
 )
 from ._eoir import Nuc, Sensor, __version__
 from ._toolbox import (
+    assess,
     characterize,
     edge_mtf,
     find_rts_pixels,
@@ -71,6 +72,7 @@ __all__ = [
     "nuc_fit",
     "find_rts_pixels",
     "nuc_apply",
+    "assess",
     "characterize",
     "simulate_acquisition_set",
     "set_max_memory_bytes",

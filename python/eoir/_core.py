@@ -365,6 +365,7 @@ def run(
     calibration_temperatures_k=None,
     first_frame: int = 0,
     sequence_frames: Optional[int] = None,
+    assess: bool = False,
     as_dataset: bool = True,
 ):
     """Run radiance through a sensor: what ``eoir run`` computes, without files.
@@ -422,6 +423,10 @@ def run(
         (:func:`eoir.dask.run_frames` does). A moving camera is a sensor with a
         ``[clock]`` and motion (``docs/motion.md``; MultimIR's
         ``sequence="aircraft"`` option drifts 2 px per frame).
+    assess : bool, default False
+        Add the sensor's analytic figures of merit (``eoir run --assess``) to the report
+        as ``report["figures_of_merit"]``: the same dict as ``eoir.assess(sensor,
+        analytic_only=True)["analytic"]``.
     as_dataset : bool, default True
         Return an ``xarray.Dataset``; False returns a :class:`RunResult` of NumPy arrays.
 
@@ -517,6 +522,7 @@ def run(
         units_text,
         calibration_temperatures_k=temps,
         sequence_frames=sequence_frames,
+        assess=bool(assess),
     )
     squeeze = data.ndim == 3 and frames <= 1
     result = RunResult(d, squeeze)

@@ -151,6 +151,10 @@ def restore_sequence(
     noise : {"auto", "model"}, default "auto"
         ``auto``: the scatter of the samples within the fine cells; ``model``: the
         sensor's temporal noise. ``nsr`` gives a constant instead.
+    nsr : float, optional
+        A constant noise-to-signal power ratio instead of ``noise``.
+    black_level : float, optional
+        The DN of zero signal (default: the sensor model's dark level).
 
     Returns
     -------
@@ -419,3 +423,62 @@ def simulate_acquisition_set(sensor: Sensor, output, seed: int = 1, window: int 
         _eoir.simulate_acquisition_set, sensor, os.fspath(output),
         _checks.uint("seed", seed), _checks.uint("window", window),
     ))
+
+
+def assess(sensor: Sensor, *, seed: int = 1, temperature_k: float = 300.0, frames: int = 32,
+           window: int = 64, target=None, ranges_km=None, elevation_deg: float = 90.0,
+           analytic_only: bool = False) -> dict:
+    """The figures of merit of a sensor (``eoir assess``): NETD, MTF50, MTF at Nyquist, RER,
+    3-D noise, MRTD (thermal), GIQE 5 NIIRS (reflective) and TTP range performance,
+    analytic and, unless ``analytic_only``, measured on frames the same model simulates.
+
+    Parameters
+    ----------
+    sensor : Sensor
+    seed : int, default 1
+        Seed of the simulated frames.
+    temperature_k : float, default 300
+        Blackbody temperature of the noise measurements.
+    frames : int, default 32
+        Frames of the simulated 3-D noise sequence.
+    window : int, default 64
+        Side of the square detector window (pixels) the measurements simulate.
+    target : dict, optional
+        ``size_m`` (2.3), ``delta_t_k`` (2.0), ``contrast`` (0.3), ``sct_k``,
+        ``extinction_per_km`` (default: the sensor's atmosphere); unknown keys raise.
+    ranges_km : sequence of float, optional
+        Ranges of the range curves (default 40 from 0.5 to 20 km), strictly increasing.
+    elevation_deg : float, default 90
+        Elevation of the line of sight for GIQE's ground sample distance.
+    analytic_only : bool, default False
+        Skip the simulations.
+
+    Returns
+    -------
+    dict
+        ``assess.json``'s fields: ``analytic`` (``netd_k``, ``mtf50_cy_per_px``, ``rer``,
+        ``noise3d``, ``mrtd``, ``niirs``, ``ctf_sys_h``, ``tasks`` with ``range_p50_m`` …)
+        and ``measured`` (or None).
+    """
+    t = None
+    if target is not None:
+        known = {"size_m": 2.3, "delta_t_k": 2.0, "contrast": 0.3, "sct_k": None,
+                 "extinction_per_km": None}
+        target = dict(target)
+        unknown = set(target) - set(known)
+        if unknown:
+            raise ValueError(
+                f"invalid parameter `target`: unknown key(s) {sorted(unknown)}; "
+                f"valid: {', '.join(known)}")
+        sct = target.get("sct_k")
+        ext = target.get("extinction_per_km")
+        t = (float(target.get("size_m", 2.3)), float(target.get("delta_t_k", 2.0)),
+             float(target.get("contrast", 0.3)), None if sct is None else float(sct),
+             None if ext is None else float(ext))
+    ranges_m = None if ranges_km is None else [1000.0 * float(r) for r in ranges_km]
+    return json.loads(_checks.native(
+        _eoir.assess, sensor, _checks.uint("seed", seed), float(temperature_k),
+        _checks.uint("frames", frames), _checks.uint("window", window), t, ranges_m,
+        float(elevation_deg), bool(analytic_only),
+    ))
+

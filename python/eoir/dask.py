@@ -27,7 +27,7 @@ try:
 except ImportError as e:  # pragma: no cover - import guard
     raise ImportError("eoir.dask needs dask: pip install 'dask[array]' distributed zarr") from e
 
-__all__ = ["run_frames", "run_files", "PRODUCTS"]
+__all__ = ["run_frames", "run_files", "sweep", "PRODUCTS"]
 
 PRODUCTS = {
     "dn": np.uint16,
@@ -206,3 +206,129 @@ def run_files(
     if client is not None:
         return list(client.gather(client.compute(tasks)))
     return list(dask.compute(*tasks))
+
+
+def _sweep_point(sensor, options, overrides, point, assess_kwargs):
+    """The figures of merit at one grid point: ``point`` maps varied keys to values."""
+    ov = dict(overrides)
+    ov.update(point)
+    s = eoir.load_sensor(sensor, options, ov)
+    try:
+        a = eoir.assess(s, **assess_kwargs)
+    except ValueError as e:
+        # A valid sensor without figures at this point (e.g. its reference saturates): a
+        # NaN row with a note, as `eoir sweep` does, not the end of the trade study.
+        return {"_note": str(e)}
+    an = a["analytic"]
+    out = {
+        "netd_k": an.get("netd_k"),
+        "mtf50_cy_per_px": an.get("mtf50_cy_per_px"),
+        "mtf_nyquist": an.get("mtf_nyquist"),
+        "rer": an.get("rer"),
+    }
+    for t in an.get("tasks", []):
+        out[f"{t['task']}_p50_m"] = t.get("range_p50_m")
+        out[f"{t['task']}_p80_m"] = t.get("range_p80_m")
+    m = a.get("measured")
+    if m:
+        out["netd_measured_k"] = m.get("netd_k")
+        out["mtf50_measured_cy_per_px"] = m.get("mtf50_cy_per_px")
+    return {k: (np.nan if v is None else float(v)) for k, v in out.items()}
+
+
+def _axis(key, spec):
+    """The values of one varied key: ``(start, stop, n)`` (inclusive, like ``eoir sweep
+    --vary key=start:stop:n``) or an explicit sequence of numbers."""
+    if not isinstance(key, str) or not key:
+        raise ValueError(f"invalid parameter `vary`: key {key!r} is not a dotted key path")
+    if isinstance(spec, tuple) and len(spec) == 3:
+        start, stop, n = spec
+        if not (isinstance(n, (int, np.integer)) and n >= 1):
+            raise ValueError(
+                f"invalid parameter `vary[{key!r}]`: n = {n!r}; an integer >= 1")
+        values = np.linspace(float(start), float(stop), int(n))
+    else:
+        values = np.asarray(spec, dtype=float).ravel()
+    if values.size == 0 or not np.all(np.isfinite(values)):
+        raise ValueError(
+            f"invalid parameter `vary[{key!r}]`: {spec!r}; (start, stop, n) or finite numbers")
+    return values
+
+
+def sweep(
+    sensor: str,
+    vary: Dict[str, Any],
+    *,
+    options: Optional[Dict[str, Any]] = None,
+    overrides: Optional[Dict[str, Any]] = None,
+    analytic_only: bool = True,
+    target: Optional[Dict[str, Any]] = None,
+    ranges_km: Optional[Sequence[float]] = None,
+    seed: int = 1,
+    client=None,
+    store=None,
+):
+    """A trade study: the figures of merit of ``sensor`` (a preset name or TOML path) over
+    the grid of every combination of the ``vary`` values, one Dask task per grid point
+    (``eoir sweep`` in Python).
+
+    ``vary`` maps dotted keys (as ``overrides``/``--set``) to ``(start, stop, n)`` or a
+    sequence of values. Each task loads the sensor with the point's values and runs
+    :func:`eoir.assess` (analytic figures only unless ``analytic_only=False``, which also
+    simulates and measures). ``client``: a ``dask.distributed.Client`` (default: the
+    current one if any, else the default scheduler). The result is the same whatever the
+    scheduler or the number of workers.
+
+    Returns an ``xarray.Dataset`` with one dimension per varied key (in the order given)
+    and one variable per figure (``netd_k``, ``mtf50_cy_per_px``, ``mtf_nyquist``, ``rer``,
+    ``<task>_p50_m``, ``<task>_p80_m``; NaN where a figure does not apply); written to the
+    Zarr store ``store`` too when given. A point whose sensor is valid but has no figures
+    (e.g. its reference level saturates) is NaN throughout and explained in the attribute
+    ``notes`` (one string per such point); if no point has figures, ``ValueError``.
+    """
+    import itertools
+
+    import xarray as xr
+
+    if not isinstance(vary, dict) or not vary:
+        raise ValueError("invalid parameter `vary`: a dict of at least one dotted key")
+    keys = list(vary)
+    axes = [_axis(k, vary[k]) for k in keys]
+    opts = dict(options or {})
+    ov = dict(overrides or {})
+    kw = {"analytic_only": bool(analytic_only), "seed": int(seed)}
+    if target is not None:
+        kw["target"] = dict(target)
+    if ranges_km is not None:
+        kw["ranges_km"] = [float(r) for r in ranges_km]
+    # The first point in this process: a bad sensor, key or target fails here, once.
+    points = [dict(zip(keys, (float(v) for v in p))) for p in itertools.product(*axes)]
+    first = _sweep_point(sensor, opts, ov, points[0], kw)
+    tasks = [
+        dask.delayed(_sweep_point, pure=True)(sensor, opts, ov, p, kw)
+        for p in points[1:]
+    ]
+    if client is not None:
+        rest = list(client.gather(client.compute(tasks)))
+    else:
+        rest = list(dask.compute(*tasks))
+    results = [first] + rest
+    notes = [
+        ", ".join(f"{k}={v}" for k, v in p.items()) + ": " + r["_note"]
+        for p, r in zip(points, results) if "_note" in r
+    ]
+    if len(notes) == len(points):
+        raise ValueError(f"no sweep point has figures of merit; the first: {notes[0]}")
+    shape = tuple(len(a) for a in axes)
+    names = next(list(r) for r in results if "_note" not in r)
+    data = {
+        n: (keys, np.array([r.get(n, np.nan) for r in results], dtype=float).reshape(shape))
+        for n in names
+    }
+    ds = xr.Dataset(data, coords={k: a for k, a in zip(keys, axes)},
+                    attrs={"sensor": str(sensor), "analytic_only": int(bool(analytic_only)),
+                           "notes": notes})
+    if store is not None:
+        ds.to_zarr(os.fspath(store), mode="w")
+    return ds
+

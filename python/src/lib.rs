@@ -544,7 +544,7 @@ mod num_zero {
 #[pyo3(signature = (sensor, radiance, wavelength_um, fov_deg, seed=1, frames=1,
     calibrate=true, nuc_degree=1, first_frame=0, range_m=None, units="W m-2 sr-1 um-1",
     fwhm_um=None, input_name="numpy array", calibration_temperatures_k=None,
-    sequence_frames=None))]
+    sequence_frames=None, assess=false))]
 #[allow(clippy::too_many_arguments)]
 fn run<'py>(
     py: Python<'py>,
@@ -563,6 +563,7 @@ fn run<'py>(
     input_name: &str,
     calibration_temperatures_k: Option<Vec<f64>>,
     sequence_frames: Option<u64>,
+    assess: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let scale = parse_scale(units)?;
     let units = scale.units;
@@ -632,7 +633,11 @@ fn run<'py>(
             source,
             to_eoir: scale.to_eoir,
         };
-        pipeline::run(sensor, &mut reader, &options, |_, _| {})
+        let mut out = pipeline::run(sensor, &mut reader, &options, |_, _| {})?;
+        if assess {
+            eoir::merit::run_report::attach(&mut out, &Default::default())?;
+        }
+        Ok(out)
     })?;
     let d = PyDict::new(py);
     let f = &out.frames;
@@ -672,8 +677,14 @@ fn run<'py>(
                 rows.iter().map(f).collect()
             };
             t.set_item("frame", rows.iter().map(|r| r.frame).collect::<Vec<u64>>())?;
-            t.set_item("row_first", rows.iter().map(|r| r.rows.0).collect::<Vec<usize>>())?;
-            t.set_item("row_last", rows.iter().map(|r| r.rows.1).collect::<Vec<usize>>())?;
+            t.set_item(
+                "row_first",
+                rows.iter().map(|r| r.rows.0).collect::<Vec<usize>>(),
+            )?;
+            t.set_item(
+                "row_last",
+                rows.iter().map(|r| r.rows.1).collect::<Vec<usize>>(),
+            )?;
             t.set_item("t_start_s", col(&|r| r.window_s.0))?;
             t.set_item("t_end_s", col(&|r| r.window_s.1))?;
             t.set_item("dx_px", col(&|r| r.displacement_px[0]))?;
@@ -684,7 +695,10 @@ fn run<'py>(
         None => None,
     };
     d.set_item("line_of_sight", los)?;
-    d.set_item("focal_plane", focal_plane_dict(py, out.focal_plane.as_ref())?)?;
+    d.set_item(
+        "focal_plane",
+        focal_plane_dict(py, out.focal_plane.as_ref())?,
+    )?;
     Ok(d)
 }
 
@@ -702,18 +716,28 @@ fn focal_plane_dict<'py>(
     let n = t.frames.len();
     let px = t.rts_pixels.len();
     if t.frames.iter().all(|f| f.rts.is_some()) && n > 0 {
-        d.set_item("rts_row", t.rts_pixels.iter().map(|p| p / t.cols).collect::<Vec<_>>())?;
-        d.set_item("rts_col", t.rts_pixels.iter().map(|p| p % t.cols).collect::<Vec<_>>())?;
+        d.set_item(
+            "rts_row",
+            t.rts_pixels.iter().map(|p| p / t.cols).collect::<Vec<_>>(),
+        )?;
+        d.set_item(
+            "rts_col",
+            t.rts_pixels.iter().map(|p| p % t.cols).collect::<Vec<_>>(),
+        )?;
         let frac = Array2::from_shape_fn((n, px), |(k, i)| {
             t.frames[k].rts.as_ref().map_or(0.0, |r| r.high_fraction[i])
         });
         let high = Array2::from_shape_fn((n, px), |(k, i)| {
-            t.frames[k].rts.as_ref().is_some_and(|r| r.high_at_readout[i])
+            t.frames[k]
+                .rts
+                .as_ref()
+                .is_some_and(|r| r.high_at_readout[i])
         });
         d.set_item("rts_high_fraction", frac.into_pyarray(py))?;
         d.set_item("rts_high_at_readout", high.into_pyarray(py))?;
     }
-    let trapped: Option<Vec<&Array2<f32>>> = t.frames.iter().map(|f| f.trapped_e.as_ref()).collect();
+    let trapped: Option<Vec<&Array2<f32>>> =
+        t.frames.iter().map(|f| f.trapped_e.as_ref()).collect();
     if let Some(p) = trapped.filter(|p| !p.is_empty()) {
         d.set_item("trapped_e", stack(&p).into_pyarray(py))?;
     }
@@ -1000,19 +1024,6 @@ const RESTORE_BYTES_PER_PIXEL: u64 = 192;
 /// Peak memory of an edge-MTF measurement per image pixel, bytes (the CLI's).
 const EDGE_MTF_BYTES_PER_PIXEL: u64 = 64;
 
-/// Mean, standard deviation, minimum and maximum (as `restore.json` reports them).
-fn stats(a: &Array2<f64>) -> serde_json::Value {
-    let n = a.len() as f64;
-    let mean = a.sum() / n;
-    let var = a.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n;
-    let (lo, hi) = a
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-            (l.min(*v), h.max(*v))
-        });
-    serde_json::json!({ "mean": mean, "std": var.sqrt(), "min": lo, "max": hi })
-}
-
 /// Wiener restoration of a recorded image with the sensor's transfer function (as `eoir
 /// restore`). `image` is f64 `[row, col]`; `is_dn` says it holds DN (else f32 values in
 /// `units`, "electrons" or "radiance"). Returns `{restored (f32, what restored.tiff
@@ -1167,8 +1178,8 @@ fn restore<'py>(
                 "components": sensor.otf().components().iter().map(|c| c.name()).collect::<Vec<_>>(),
             },
             "padded_shape": [r.padded_shape.0, r.padded_shape.1],
-            "input_stats": stats(&image),
-            "output_stats": stats(&restored),
+            "input_stats": eoir::processing::wiener::ImageStats::of(&image),
+            "output_stats": eoir::processing::wiener::ImageStats::of(&restored),
         });
         let text = serde_json::to_string(&report)
             .map_err(|e| eoir::Error::param("report", "restore", e.to_string()))?;
@@ -1557,6 +1568,56 @@ fn simulate_acquisition_set(
     })
 }
 
+/// The figures of merit of a sensor (as `eoir assess`): `assess.json` as JSON. `target` is
+/// `(size_m, delta_t_k, contrast, sct_k or None, extinction_per_km or None)`; `ranges_m` the
+/// ranges of the range curves; `analytic_only` skips the simulated measurements.
+#[pyfunction]
+#[pyo3(signature = (sensor, seed=1, temperature_k=300.0, frames=32, window=64, target=None, ranges_m=None, elevation_deg=90.0, analytic_only=false))]
+#[allow(clippy::too_many_arguments)]
+fn assess(
+    py: Python<'_>,
+    sensor: &PySensor,
+    seed: u64,
+    temperature_k: f64,
+    frames: usize,
+    window: usize,
+    target: Option<(f64, f64, f64, Option<f64>, Option<f64>)>,
+    ranges_m: Option<Vec<f64>>,
+    elevation_deg: f64,
+    analytic_only: bool,
+) -> PyResult<String> {
+    use eoir::merit::assess::{AssessOptions, TargetSpec};
+    let defaults = AssessOptions::default();
+    let target = match target {
+        Some((size_m, delta_t_k, contrast, sct_k, extinction_per_km)) => TargetSpec {
+            size_m,
+            delta_t_k,
+            contrast,
+            sct_k: sct_k.unwrap_or(TargetSpec::default().sct_k),
+            extinction_per_km,
+        },
+        None => TargetSpec::default(),
+    };
+    let opts = AssessOptions {
+        seed,
+        temperature_k,
+        frames,
+        window_px: window,
+        target,
+        ranges_m: ranges_m.unwrap_or(defaults.ranges_m),
+        elevation_deg,
+        display: None,
+        analytic_only,
+    };
+    let sensor = sensor.inner.clone();
+    detached(py, move || {
+        opts.validate()?;
+        let a = eoir::merit::assess::assess(&sensor, &opts)?;
+        serde_json::to_string(&a)
+            .map_err(|e| eoir::Error::param("assessment", "json", e.to_string()))
+    })
+}
+
 /// Reads a single-plane image file: a 16-bit greyscale PNG or TIFF (DN, uint16) or a
 /// 32-bit float TIFF (float32), with the library's readers (as `eoir restore` reads them).
 #[pyfunction]
@@ -1648,19 +1709,7 @@ fn restore_sequence<'py>(
             return Err(eoir::Error::param("black_level", black, "a finite DN >= 0"));
         }
         let signal = stack.mapv(|v| v - black);
-        let rule = match (nsr, noise.as_str()) {
-            (Some(x), _) => SequenceNoise::Constant(x),
-            (None, "model") => {
-                let finite: Vec<f64> = signal.iter().copied().filter(|v| v.is_finite()).collect();
-                let mean = finite.iter().sum::<f64>() / finite.len().max(1) as f64;
-                let mean_e = (mean / model.gain_dn_per_e()).max(0.0);
-                SequenceNoise::Model {
-                    frame_variance: model.temporal_noise_dn(mean_e).powi(2)
-                        + model.quantisation_noise_dn().powi(2),
-                }
-            }
-            (None, _) => SequenceNoise::Scatter,
-        };
+        let rule = SequenceNoise::from_rule(nsr, &noise, signal.view(), model)?;
         let transfer = SensorTransfer::new(sensor)?;
         let r = restore_stack(signal.view(), shifts.as_deref(), upsample, &transfer, rule)?;
         let restored = r.restoration.image.mapv(|v| (v + black) as f32);
@@ -1672,7 +1721,7 @@ fn restore_sequence<'py>(
             "shifts_px": r.shifts.iter().map(|t| [t.dx_px, t.dy_px]).collect::<Vec<_>>(),
             "black_level_dn": black,
             "holes_filled": r.fine.holes_filled,
-            "noise_rule": match rule { SequenceNoise::Scatter => "scatter", SequenceNoise::Model { .. } => "model", SequenceNoise::Constant(_) => "constant" },
+            "noise_rule": rule.name(),
             "fine_noise_variance_dn2": r.fine_noise_variance,
             "sample_variance_dn2": r.fine.sample_variance,
             "nsr_median": r.restoration.nsr_median,
@@ -1702,6 +1751,7 @@ fn _eoir(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyNuc>()?;
     m.add_function(wrap_pyfunction!(restore, m)?)?;
     m.add_function(wrap_pyfunction!(restore_sequence, m)?)?;
+    m.add_function(wrap_pyfunction!(assess, m)?)?;
     m.add_function(wrap_pyfunction!(edge_mtf, m)?)?;
     m.add_function(wrap_pyfunction!(nuc_fit, m)?)?;
     m.add_function(wrap_pyfunction!(find_rts_pixels, m)?)?;

@@ -7,27 +7,19 @@ use std::path::PathBuf;
 use anyhow::{bail, Context, Result};
 
 use eoir::merit::assess::{self, AssessOptions, Assessment, TargetSpec};
+use eoir::merit::plots;
 use eoir::plot::{self, LinePlot, Marker, Series};
 
-use super::run::SensorArgs;
+use super::sensor_args::SensorArgs;
 
 /// Arguments of `eoir assess`.
 #[derive(Debug, clap::Args)]
 pub struct AssessArgs {
     #[command(flatten)]
     pub sensor: SensorArgs,
-    /// Target: comma-separated `key=value` of `size_m` (√area, default 2.3), `delta_t_k`
-    /// (thermal ΔT, 2), `contrast` (reflective, 0.3), `sct_k` (scene contrast temperature,
-    /// 4), `extinction_per_km` (default: the sensor's [aerosol], else 0).
-    #[arg(long, value_name = "KEY=VALUE,…")]
-    pub target: Option<String>,
-    /// Ranges `START:STOP:N` in km (N ≥ 2 evenly spaced values, 0 < START < STOP).
-    #[arg(
-        long = "range-km",
-        value_name = "START:STOP:N",
-        default_value = "0.5:20:40"
-    )]
-    pub range_km: String,
+    /// The target and the ranges.
+    #[command(flatten)]
+    pub task: TaskArgs,
     /// Frames of the simulated uniform sequence (3-D noise, NETD).
     #[arg(long, default_value_t = 32)]
     pub frames: usize,
@@ -49,6 +41,38 @@ pub struct AssessArgs {
     /// Output directory (assess.json, CSV tables, PNG plots, assess.html).
     #[arg(short, long)]
     pub output: PathBuf,
+}
+
+/// The target and the range grid of the range performance (`eoir assess`, `eoir sweep`).
+#[derive(Debug, clap::Args)]
+pub struct TaskArgs {
+    /// Target: comma-separated `key=value` of `size_m` (√area, default 2.3), `delta_t_k`
+    /// (thermal ΔT, 2), `contrast` (reflective, 0.3), `sct_k` (scene contrast temperature,
+    /// 4), `extinction_per_km` (default: the sensor's [aerosol], else 0).
+    #[arg(long, value_name = "KEY=VALUE,…")]
+    pub target: Option<String>,
+    /// Ranges `START:STOP:N` in km (N ≥ 2 evenly spaced values, 0 < START < STOP).
+    #[arg(
+        long = "range-km",
+        value_name = "START:STOP:N",
+        default_value = "0.5:20:40"
+    )]
+    pub range_km: String,
+}
+
+impl TaskArgs {
+    /// The target (defaults where not given) and the ranges in m.
+    pub fn parse(&self) -> Result<(TargetSpec, Vec<f64>)> {
+        let target = match &self.target {
+            Some(t) => parse_target(t)?,
+            None => TargetSpec::default(),
+        };
+        let ranges_km = parse_grid(&self.range_km, "--range-km")?;
+        if ranges_km[0] <= 0.0 {
+            bail!("--range-km `{}`: ranges must be > 0 km", self.range_km);
+        }
+        Ok((target, ranges_km.iter().map(|r| r * 1e3).collect()))
+    }
 }
 
 /// Parses `--target key=value,…` onto the defaults.
@@ -102,28 +126,27 @@ pub fn parse_grid(text: &str, flag: &str) -> Result<Vec<f64>> {
         bail!("{flag} `{text}`: STOP must exceed START");
     }
     Ok((0..n)
-        .map(|i| a + (b - a) * i as f64 / (n - 1) as f64)
+        .map(|i| decimal(a + (b - a) * i as f64 / (n - 1) as f64))
         .collect())
+}
+
+/// `v` rounded to 12 significant digits: a grid step's rounding error dropped, so
+/// `0.05:0.25:5` gives 0.15 (printed as `0.15`), not 0.15000000000000002.
+fn decimal(v: f64) -> f64 {
+    format!("{v:.11e}").parse().unwrap_or(v)
 }
 
 /// `eoir assess`.
 pub fn assess(args: AssessArgs) -> Result<()> {
     let sensor = args.sensor.load()?;
-    let target = match &args.target {
-        Some(t) => parse_target(t)?,
-        None => TargetSpec::default(),
-    };
-    let ranges_km = parse_grid(&args.range_km, "--range-km")?;
-    if ranges_km[0] <= 0.0 {
-        bail!("--range-km `{}`: ranges must be > 0 km", args.range_km);
-    }
+    let (target, ranges_m) = args.task.parse()?;
     let opts = AssessOptions {
         seed: args.seed,
         temperature_k: args.temperature_k,
         frames: args.frames,
         window_px: args.window,
         target,
-        ranges_m: ranges_km.iter().map(|r| r * 1e3).collect(),
+        ranges_m,
         elevation_deg: args.elevation_deg,
         display: None,
         analytic_only: args.analytic_only,
@@ -205,41 +228,8 @@ pub fn write_products(set: &eoir::io::output::ProductSet, a: &Assessment) -> Res
     set.write_bytes("ctf_sys.csv", csv.as_bytes())?;
 
     // Plots.
-    let ranges_km: Vec<f64> = an.ranges_m.iter().map(|r| r * 1e-3).collect();
-    let labels: Vec<String> = an
-        .tasks
-        .iter()
-        .map(|t| format!("{} (V50 {:.1})", t.task, t.v50))
-        .collect();
-    let series: Vec<Series> = an
-        .tasks
-        .iter()
-        .zip(&labels)
-        .map(|(t, l)| Series {
-            label: l,
-            x: &ranges_km,
-            y: &t.probability,
-        })
-        .collect();
-    let title = format!("TTP task probability, {} m target", an.target.size_m);
-    set.write("probability.png", |p| {
-        plot::write_line_plot(
-            p,
-            &LinePlot {
-                title: &title,
-                x_label: "range (km)",
-                y_label: "probability",
-                series,
-                markers: vec![],
-                y_range: Some((0.0, 1.0)),
-                size_px: (900, 600),
-            },
-        )
-    })?;
+    set.write_bytes("probability.png", &plots::probability_png(an)?)?;
     if let Some(mrtd) = &an.mrtd {
-        let pts: Vec<_> = mrtd.iter().filter(|p| p.mrtd_k.is_finite()).collect();
-        let f: Vec<f64> = pts.iter().map(|p| p.freq_cy_per_px).collect();
-        let m: Vec<f64> = pts.iter().map(|p| p.mrtd_k).collect();
         let mut csv = String::from("freq_cy_per_px,freq_cy_per_mrad,mtf,mrtd_k\n");
         for p in mrtd {
             let _ = writeln!(
@@ -252,53 +242,12 @@ pub fn write_products(set: &eoir::io::output::ProductSet, a: &Assessment) -> Res
             );
         }
         set.write_bytes("mrtd.csv", csv.as_bytes())?;
-        set.write("mrtd.png", |p| {
-            plot::write_line_plot(
-                p,
-                &LinePlot {
-                    title: "MRTD (FLIR92 form)",
-                    x_label: "bar frequency (cycles/pixel)",
-                    y_label: "MRTD (K)",
-                    series: vec![Series {
-                        label: "analytic",
-                        x: &f,
-                        y: &m,
-                    }],
-                    markers: vec![Marker {
-                        label: "Nyquist",
-                        x: 0.5,
-                    }],
-                    y_range: Some((
-                        0.0,
-                        m.iter()
-                            .copied()
-                            .fold(0.0, f64::max)
-                            .min(20.0 * m[0].max(1e-9)),
-                    )),
-                    size_px: (900, 600),
-                },
-            )
-        })?;
     }
-    if let Some(n) = &an.niirs {
-        set.write("niirs.png", |p| {
-            plot::write_line_plot(
-                p,
-                &LinePlot {
-                    title: "GIQE 5 NIIRS",
-                    x_label: "range (km)",
-                    y_label: "NIIRS",
-                    series: vec![Series {
-                        label: "analytic",
-                        x: &ranges_km,
-                        y: n,
-                    }],
-                    markers: vec![],
-                    y_range: None,
-                    size_px: (900, 600),
-                },
-            )
-        })?;
+    if let Some(png) = plots::mrtd_png(an)? {
+        set.write_bytes("mrtd.png", &png)?;
+    }
+    if let Some(png) = plots::niirs_png(an)? {
+        set.write_bytes("niirs.png", &png)?;
     }
     if let Some((f, m)) = me.and_then(|m| m.edge_mtf.as_ref()) {
         let analytic: Vec<f64> = f

@@ -7,8 +7,6 @@ use anyhow::{bail, Context, Result};
 
 use eoir::characterize::{self, SimulateOptions};
 
-use super::run;
-
 /// Arguments of `eoir characterize`.
 #[derive(Debug, clap::Args)]
 pub struct CharacterizeArgs {
@@ -20,7 +18,7 @@ pub struct CharacterizeArgs {
     #[arg(long)]
     pub simulate: bool,
     #[command(flatten)]
-    pub sensor: run::SensorArgs,
+    pub sensor: super::sensor_args::SensorArgs,
     /// Seed of the simulated sensor instance and its temporal noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,

@@ -14,6 +14,7 @@ pub mod restore_sequence;
 pub mod rts;
 pub mod run;
 pub mod scene;
+pub mod sensor_args;
 pub mod sensors;
 pub mod sweep;
 pub mod temperature;

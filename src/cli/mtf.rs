@@ -6,13 +6,11 @@ use anyhow::{Context, Result};
 
 use eoir::report::{mean_wavelength_um, MtfCurves};
 
-use super::run;
-
 /// Arguments of `eoir mtf`.
 #[derive(Debug, clap::Args)]
 pub struct MtfArgs {
     #[command(flatten)]
-    pub sensor: run::SensorArgs,
+    pub sensor: super::sensor_args::SensorArgs,
     /// Wavelength, µm (default: the response-weighted mean wavelength of the sensor).
     #[arg(long)]
     pub wavelength_um: Option<f64>,

@@ -11,10 +11,10 @@ use eoir::display;
 use eoir::io::output::ProductSet;
 use eoir::io::raster;
 use eoir::processing::bad_pixels;
-use eoir::processing::wiener::{self, Method, NoiseRule, RestoreMasks, SensorTransfer};
+use eoir::processing::wiener::{self, ImageStats, Method, NoiseRule, RestoreMasks, SensorTransfer};
 
 use super::defects::image_defects;
-use super::run::SensorArgs;
+use super::sensor_args::SensorArgs;
 
 /// What the pixel values of an input image are.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -148,19 +148,6 @@ pub struct RestoreArgs {
     pub sequence: super::restore_sequence::SequenceArgs,
 }
 
-/// Mean, standard deviation, minimum and maximum.
-fn stats(a: &Array2<f64>) -> serde_json::Value {
-    let n = a.len() as f64;
-    let mean = a.sum() / n;
-    let var = a.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n;
-    let (lo, hi) = a
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-            (l.min(*v), h.max(*v))
-        });
-    json!({ "mean": mean, "std": var.sqrt(), "min": lo, "max": hi })
-}
-
 /// An 8-bit grey display image with the same percentile stretch as `dn.png`
 /// ([`display::DN_STRETCH_LO_PERCENT`]–[`display::DN_STRETCH_HI_PERCENT`]).
 fn display_stretch(a: &Array2<f64>) -> ndarray::Array2<u8> {
@@ -171,6 +158,34 @@ fn display_stretch(a: &Array2<f64>) -> ndarray::Array2<u8> {
     )
     .unwrap_or(display::Stretch { lo: 0.0, hi: 1.0 });
     a.mapv(|v| stretch.to_u8(v))
+}
+
+/// Writes a restoration's products into `output` as one set (all or none):
+/// `restored.tiff` (f32; `too_large` says why a value beyond f32 cannot be stored),
+/// `restored.png` (the DN display stretch) and `restore.json`; returns the paths written.
+pub fn write_restored(
+    output: &Path,
+    restored: &Array2<f64>,
+    report: &serde_json::Value,
+    too_large: &str,
+) -> Result<Vec<PathBuf>> {
+    let stored = restored.mapv(|v| v as f32);
+    let set = ProductSet::begin(output)?;
+    eoir::io::output::check_finite(
+        &set.final_path(&set.path("restored.tiff")),
+        stored.iter().map(|&v| v as f64),
+        &format!("restored.tiff stores 32-bit floats (|value| <= 3.4e38): {too_large}"),
+    )?;
+    set.write("restored.tiff", |p| {
+        raster::write_tiff_f32(p, stored.view())
+    })?;
+    let grey = display_stretch(restored);
+    let samples: Vec<u8> = grey.iter().copied().collect();
+    let (rows, cols) = restored.dim();
+    let bytes = display::encode_png(cols, rows, 1, &samples)?;
+    set.write("restored.png", |p| display::write_png_bytes(p, &bytes))?;
+    set.write_json("restore.json", report)?;
+    Ok(set.commit()?)
 }
 
 /// `eoir restore`.
@@ -301,27 +316,17 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
             "components": sensor.otf().components().iter().map(|c| c.name()).collect::<Vec<_>>(),
         },
         "padded_shape": [r.padded_shape.0, r.padded_shape.1],
-        "input_stats": stats(&image),
-        "output_stats": stats(&restored),
+        "input_stats": ImageStats::of(&image),
+        "output_stats": ImageStats::of(&restored),
     });
     // Everything is computed: only now touch the output directory, all three products
     // as one set (the old set stays whole until the new one is complete).
-    let stored = restored.mapv(|v| v as f32);
-    let set = ProductSet::begin(&args.output)?;
-    eoir::io::output::check_finite(
-        &set.final_path(&set.path("restored.tiff")),
-        stored.iter().map(|&v| v as f64),
-        "restored.tiff stores 32-bit floats (|value| <= 3.4e38): the input holds values too large for the restoration to be stored",
+    let written = write_restored(
+        &args.output,
+        &restored,
+        &report,
+        "the input holds values too large for the restoration to be stored",
     )?;
-    set.write("restored.tiff", |p| {
-        raster::write_tiff_f32(p, stored.view())
-    })?;
-    let grey = display_stretch(&restored);
-    let samples: Vec<u8> = grey.iter().copied().collect();
-    let bytes = display::encode_png(cols, rows, 1, &samples)?;
-    set.write("restored.png", |p| display::write_png_bytes(p, &bytes))?;
-    set.write_json("restore.json", &report)?;
-    let written = set.commit()?;
     println!(
         "{}: {} ({}{}), MTF at Nyquist {:.3} (x) {:.3} (y), {} pixels replaced",
         sensor.name,

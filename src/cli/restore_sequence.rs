@@ -9,12 +9,9 @@ use anyhow::{bail, Context, Result};
 use ndarray::Array3;
 use serde_json::json;
 
-use eoir::display;
-use eoir::io::output::ProductSet;
-use eoir::io::raster;
 use eoir::processing::bad_pixels;
 use eoir::processing::multi_frame::{restore_sequence as restore_stack, SequenceNoise};
-use eoir::processing::wiener::{SensorTransfer, IMPULSE_K_SIGMA};
+use eoir::processing::wiener::{ImageStats, SensorTransfer, IMPULSE_K_SIGMA};
 use eoir::sensor::{presets, Sensor};
 
 use super::restore::RestoreArgs;
@@ -107,19 +104,6 @@ fn read_truth(path: &Path, frames: usize) -> Result<Vec<(f64, f64)>> {
     }
     let (x0, y0) = (out[0].1, out[0].2);
     Ok(out.iter().map(|(_, x, y)| (x - x0, y - y0)).collect())
-}
-
-/// Mean, standard deviation, minimum and maximum.
-fn stats(a: &ndarray::Array2<f64>) -> serde_json::Value {
-    let n = a.len() as f64;
-    let mean = a.sum() / n;
-    let var = a.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n;
-    let (lo, hi) = a
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-            (l.min(*v), h.max(*v))
-        });
-    json!({ "mean": mean, "std": var.sqrt(), "min": lo, "max": hi })
 }
 
 /// `eoir restore` of a sequence.
@@ -227,19 +211,7 @@ pub fn restore_sequence(args: &RestoreArgs) -> Result<()> {
         },
         _ => None,
     };
-    let noise = match (args.nsr, args.noise.as_str()) {
-        (Some(x), _) => SequenceNoise::Constant(x),
-        (None, "model") => {
-            let finite: Vec<f64> = stack.iter().copied().filter(|v| v.is_finite()).collect();
-            let mean = finite.iter().sum::<f64>() / finite.len().max(1) as f64;
-            let mean_e = (mean / model.gain_dn_per_e()).max(0.0);
-            SequenceNoise::Model {
-                frame_variance: model.temporal_noise_dn(mean_e).powi(2)
-                    + model.quantisation_noise_dn().powi(2),
-            }
-        }
-        (None, _) => SequenceNoise::Scatter,
-    };
+    let noise = SequenceNoise::from_rule(args.nsr, &args.noise, stack.view(), model)?;
     let transfer = SensorTransfer::new(&sensor)?;
     let r = restore_stack(stack.view(), given.as_deref(), factor, &transfer, noise)?;
     let restored = r.restoration.image.mapv(|v| v + black);
@@ -275,36 +247,21 @@ pub fn restore_sequence(args: &RestoreArgs) -> Result<()> {
         "defects_source": source,
         "samples_skipped": skipped,
         "holes_filled": r.fine.holes_filled,
-        "noise_rule": match noise { SequenceNoise::Scatter => "scatter", SequenceNoise::Model { .. } => "model", SequenceNoise::Constant(_) => "constant" },
+        "noise_rule": noise.name(),
         "nsr": match noise { SequenceNoise::Constant(x) => json!(x), _ => json!(null) },
         "fine_noise_variance_dn2": r.fine_noise_variance,
         "sample_variance_dn2": r.fine.sample_variance,
         "nsr_median": r.restoration.nsr_median,
         "object_spectrum_exponent": r.restoration.spectrum_exponent,
         "padded_shape": [r.restoration.padded_shape.0, r.restoration.padded_shape.1],
-        "output_stats": stats(&restored),
+        "output_stats": ImageStats::of(&restored),
     });
-    let stored = restored.mapv(|v| v as f32);
-    let set = ProductSet::begin(&args.output)?;
-    eoir::io::output::check_finite(
-        &set.final_path(&set.path("restored.tiff")),
-        stored.iter().map(|&v| v as f64),
-        "restored.tiff stores 32-bit floats (|value| <= 3.4e38): the restoration holds values too large to be stored",
+    let written = super::restore::write_restored(
+        &args.output,
+        &restored,
+        &report,
+        "the restoration holds values too large to be stored",
     )?;
-    set.write("restored.tiff", |p| {
-        raster::write_tiff_f32(p, stored.view())
-    })?;
-    let stretch = display::Stretch::from_percentiles(
-        restored.iter().copied(),
-        display::DN_STRETCH_LO_PERCENT,
-        display::DN_STRETCH_HI_PERCENT,
-    )
-    .unwrap_or(display::Stretch { lo: 0.0, hi: 1.0 });
-    let samples: Vec<u8> = restored.iter().map(|v| stretch.to_u8(*v)).collect();
-    let bytes = display::encode_png(cols * factor, rows * factor, 1, &samples)?;
-    set.write("restored.png", |p| display::write_png_bytes(p, &bytes))?;
-    set.write_json("restore.json", &report)?;
-    let written = set.commit()?;
     println!(
         "{}: {frames} frames registered by {register}, shift-and-add ×{factor} ({} holes filled), Wiener ({})",
         sensor.name,

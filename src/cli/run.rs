@@ -9,38 +9,9 @@ use eoir::pipeline::{self, RunOptions};
 use eoir::scene::sizing;
 use eoir::scene::synthetic::{self, SceneParams};
 use eoir::scene::Geometry;
-use eoir::sensor::{presets, Sensor, SensorConfig};
+use eoir::sensor::{presets, Sensor};
 
-/// How a command names its sensor: a file or preset, options and overrides.
-#[derive(Debug, Clone, clap::Args)]
-pub struct SensorArgs {
-    /// Sensor: a TOML file or a preset name (see `eoir sensors`).
-    #[arg(long, default_value = "multimir")]
-    pub sensor: String,
-    /// Select a preset option, e.g. `--option filter=4 --option optics=100mm` (repeatable).
-    #[arg(long = "option", value_name = "NAME=VALUE")]
-    pub option: Vec<String>,
-    /// Override a sensor field, e.g. `--set detector.integration_time_s=2e-3` (repeatable).
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    pub set: Vec<String>,
-}
-
-impl SensorArgs {
-    /// Loads the configuration of the sensor these arguments name.
-    pub fn load_config(&self) -> Result<SensorConfig> {
-        Ok(presets::load(&self.sensor, &self.option, &self.set)?)
-    }
-
-    /// Loads and resolves the sensor these arguments name.
-    pub fn load(&self) -> Result<Sensor> {
-        build(&self.load_config()?)
-    }
-}
-
-/// Resolves a sensor configuration (reads the files it refers to), naming it in errors.
-fn build(config: &SensorConfig) -> Result<Sensor> {
-    Sensor::build(config).with_context(|| format!("resolving sensor `{}`", config.name))
-}
+use super::sensor_args::{build, SensorArgs};
 
 /// Arguments of `eoir run`.
 #[derive(Debug, clap::Args)]
@@ -93,9 +64,26 @@ pub struct RunArgs {
     /// truncated by another process during the run then stops eoir with `SIGBUS`.
     #[arg(long)]
     no_mmap: bool,
+    /// Add the sensor's analytic figures of merit (NETD, MTF50, RER, MRTD, GIQE 5 NIIRS,
+    /// TTP detection/recognition/identification ranges for the default target) to
+    /// report.json and report.html, with their curves; `eoir assess` has the other
+    /// targets and the measured figures.
+    #[arg(long)]
+    assess: bool,
     /// No progress bar or summary.
     #[arg(long)]
     quiet: bool,
+}
+
+/// How [`run_file`] behaves around the pipeline.
+#[derive(Debug, Clone, Copy, Default)]
+struct FileRun {
+    /// No progress bar or summary.
+    quiet: bool,
+    /// Fail when no temperature product can be made.
+    require_temperature: bool,
+    /// Add the analytic figures of merit to the report (`--assess`).
+    assess: bool,
 }
 
 /// Arguments of `eoir demo`.
@@ -124,16 +112,24 @@ pub struct DemoArgs {
     quiet: bool,
 }
 
-/// Runs the input through the sensor, writing the products.
+/// Runs the input through the sensor, writing each frame's products into `output` as soon
+/// as the frame is exposed ([`pipeline::run_streaming`] into a [`pipeline::ProductWriter`]),
+/// so the memory does not grow with the frame count; the products of the whole run are
+/// written at the end. On an error `output` holds a partial set: the caller writes into a
+/// staging directory that is dropped on error.
 fn run_file(
     sensor: &Sensor,
     input: &Path,
     output: &Path,
     mut options: RunOptions,
     read: &eoir::io::ReadOptions,
-    quiet: bool,
-    require_temperature: bool,
-) -> Result<pipeline::RunOutput> {
+    how: FileRun,
+) -> Result<pipeline::StreamedRun> {
+    let FileRun {
+        quiet,
+        require_temperature,
+        assess,
+    } = how;
     if require_temperature && !sensor.is_thermal() {
         bail!(
             "--require-temperature: sensor `{}` does not respond beyond 3 µm, so it has no apparent-temperature products",
@@ -160,15 +156,38 @@ fn run_file(
     if options.input_name == RunOptions::default().input_name {
         options.input_name = input.display().to_string();
     }
-    let out = pipeline::run(sensor, reader.as_mut(), &options, |done, total| {
-        progress.imaging(done, total)
-    })?;
-    let no_temperature = pipeline::calibrate::missing_temperature(sensor, &out);
+    // The products stream to disk, so memory no longer bounds the frame count: the disk
+    // does. At least 8 bytes per pixel and frame (dn.tiff, electrons_mean.tiff, the stack).
+    let frames = if reader.frames() == 1 {
+        options.frames
+    } else {
+        reader.frames()
+    };
+    let mut writer = pipeline::ProductWriter::new(output)?;
+    let d = &sensor.detector;
+    eoir::io::output::check_room_for_frames(output, frames, d.rows * d.cols, 8)?;
+    let mut out = pipeline::run_streaming(
+        sensor,
+        reader.as_mut(),
+        &options,
+        |done, total| progress.imaging(done, total),
+        &mut writer,
+    )?;
+    if assess {
+        let parts = eoir::merit::run_report::RunParts {
+            sensor: &out.sensor,
+            report: &mut out.report,
+            warnings: &mut out.warnings,
+            extra_sections: &mut out.extra_sections,
+        };
+        eoir::merit::run_report::attach_to(parts, &Default::default())?;
+    }
+    let no_temperature = pipeline::calibrate::missing_temperature_of(sensor, &out.summary());
     if let (true, Some(reason)) = (require_temperature, &no_temperature) {
         bail!("--require-temperature: {reason}");
     }
     progress.writing();
-    out.write(output)?;
+    writer.finish(&out.summary())?;
     progress.finish();
     for w in &out.warnings {
         eprintln!("warning: {w}");
@@ -273,8 +292,11 @@ pub fn run(args: RunArgs) -> Result<()> {
             set.staging_dir(),
             options,
             &read,
-            args.quiet,
-            args.require_temperature,
+            FileRun {
+                quiet: args.quiet,
+                require_temperature: args.require_temperature,
+                assess: args.assess,
+            },
         )
         .map_err(|e| name_final(&set, e))?;
         print_written(&set.commit()?, args.quiet);
@@ -333,8 +355,11 @@ pub fn run(args: RunArgs) -> Result<()> {
             &set.staging_dir().join(format!("channel-{ch}")),
             options.clone(),
             &read,
-            args.quiet,
-            args.require_temperature,
+            FileRun {
+                quiet: args.quiet,
+                require_temperature: args.require_temperature,
+                assess: args.assess,
+            },
         )
         .map_err(|e| name_final(&set, e))?;
         if shared_gain.is_none() {
@@ -342,8 +367,9 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
         outs.push((lambda, out));
     }
-    let refs: Vec<(f64, &pipeline::RunOutput)> = outs.iter().map(|(l, o)| (*l, o)).collect();
-    let rgb = pipeline::false_colour_composite(&refs)?;
+    let refs: Vec<(f64, &pipeline::FrameProducts)> =
+        outs.iter().map(|(l, o)| (*l, &o.first)).collect();
+    let rgb = pipeline::false_colour_composite_of(&refs)?;
     let p = set.staging_dir().join("composite.png");
     eoir::io::raster::write_png_rgb8(&p, rgb.view()).map_err(|e| set.name_final(e))?;
     let final_png = set.final_path(&p);
@@ -422,8 +448,11 @@ pub fn demo(args: DemoArgs) -> Result<()> {
             ..Default::default()
         },
         &eoir::io::ReadOptions::default(),
-        args.quiet,
-        args.require_temperature,
+        FileRun {
+            quiet: args.quiet,
+            require_temperature: args.require_temperature,
+            assess: false,
+        },
     )?;
     print_written(&set.commit()?, args.quiet);
     Ok(())

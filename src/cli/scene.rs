@@ -9,7 +9,7 @@ use eoir::scene::sizing::{self, DetectorGrid};
 use eoir::scene::synthetic::{self, SceneParams};
 use eoir::sensor::Sensor;
 
-use crate::cli::run::SensorArgs;
+use crate::cli::sensor_args::SensorArgs;
 
 /// Arguments of `eoir scene`.
 #[derive(Debug, clap::Args)]

@@ -8,37 +8,25 @@ use std::path::PathBuf;
 use anyhow::{bail, Context, Result};
 use rayon::prelude::*;
 
-use eoir::merit::assess::{self, AssessOptions, TargetSpec};
+use eoir::merit::assess::{self, AssessOptions};
 use eoir::plot::{self, LinePlot, Series};
 use eoir::sensor::{presets, Sensor};
 
-use super::assess::{parse_grid, parse_target};
+use super::assess::{parse_grid, TaskArgs};
+use super::sensor_args::SensorArgs;
 
 /// Arguments of `eoir sweep`.
 #[derive(Debug, clap::Args)]
 pub struct SweepArgs {
-    /// Sensor: a TOML file or a preset name.
-    #[arg(long, default_value = "multimir")]
-    pub sensor: String,
-    /// Preset option (repeatable).
-    #[arg(long = "option", value_name = "NAME=VALUE")]
-    pub option: Vec<String>,
-    /// Fixed sensor field override (repeatable).
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    pub set: Vec<String>,
+    /// The sensor and its fixed options and overrides.
+    #[command(flatten)]
+    pub sensor: SensorArgs,
     /// A varied sensor field, `KEY=START:STOP:N` (repeatable; the grid is their product).
     #[arg(long = "vary", value_name = "KEY=START:STOP:N", required = true)]
     pub vary: Vec<String>,
-    /// Target, as for `eoir assess --target`.
-    #[arg(long, value_name = "KEY=VALUE,…")]
-    pub target: Option<String>,
-    /// Ranges `START:STOP:N` in km for the range performance.
-    #[arg(
-        long = "range-km",
-        value_name = "START:STOP:N",
-        default_value = "0.5:20:40"
-    )]
-    pub range_km: String,
+    /// The target and the ranges, as for `eoir assess`.
+    #[command(flatten)]
+    pub task: TaskArgs,
     /// Output directory (sweep.csv, one PNG per figure).
     #[arg(short, long)]
     pub output: PathBuf,
@@ -110,7 +98,10 @@ pub const FIGURES: [&str; 10] = [
     "identification_p80_m",
 ];
 
-/// The analytic figures at one grid point ([`FIGURES`] order; NaN where absent).
+/// The analytic figures at one grid point ([`FIGURES`] order; NaN where absent), and a
+/// note when the point's sensor is valid but has no figures (e.g. its reference level
+/// saturates): such a point is a NaN row of the trade study, not the end of it. A sensor
+/// the point's values make invalid (e.g. F-number ≤ 0) is an error.
 pub fn figures_at(
     sensor: &str,
     options: &[String],
@@ -118,14 +109,17 @@ pub fn figures_at(
     axes: &[Axis],
     point: &[f64],
     opts: &AssessOptions,
-) -> Result<Vec<f64>> {
+) -> Result<(Vec<f64>, Option<String>)> {
     let mut all = sets.to_vec();
     for (a, v) in axes.iter().zip(point) {
         all.push(format!("{}={v}", a.key));
     }
     let config = presets::load(sensor, options, &all)?;
     let s = Sensor::build(&config)?;
-    let an = assess::analytic(&s, opts)?;
+    let an = match assess::analytic(&s, opts) {
+        Ok(an) => an,
+        Err(e) => return Ok((vec![f64::NAN; FIGURES.len()], Some(e.to_string()))),
+    };
     let mut row = vec![
         an.netd_k.unwrap_or(f64::NAN),
         an.mtf50_cy_per_px.unwrap_or(f64::NAN),
@@ -136,7 +130,7 @@ pub fn figures_at(
         row.push(t.range_p50_m.unwrap_or(f64::NAN));
         row.push(t.range_p80_m.unwrap_or(f64::NAN));
     }
-    Ok(row)
+    Ok((row, None))
 }
 
 /// `eoir sweep`.
@@ -146,25 +140,27 @@ pub fn sweep(args: SweepArgs) -> Result<()> {
         .iter()
         .map(|v| parse_vary(v))
         .collect::<Result<_>>()?;
-    let target = match &args.target {
-        Some(t) => parse_target(t)?,
-        None => TargetSpec::default(),
-    };
-    let ranges_km = parse_grid(&args.range_km, "--range-km")?;
-    if ranges_km[0] <= 0.0 {
-        bail!("--range-km `{}`: ranges must be > 0 km", args.range_km);
-    }
+    let (target, ranges_m) = args.task.parse()?;
     let opts = AssessOptions {
         target,
-        ranges_m: ranges_km.iter().map(|r| r * 1e3).collect(),
+        ranges_m,
         analytic_only: true,
         ..Default::default()
     };
+    opts.validate().context("--target/--range-km")?;
     let points = grid(&axes)?;
-    let rows: Vec<Vec<f64>> = points
+    let results: Vec<(Vec<f64>, Option<String>)> = points
         .par_iter()
         .map(|p| {
-            figures_at(&args.sensor, &args.option, &args.set, &axes, p, &opts).with_context(|| {
+            figures_at(
+                &args.sensor.sensor,
+                &args.sensor.option,
+                &args.sensor.set,
+                &axes,
+                p,
+                &opts,
+            )
+            .with_context(|| {
                 let at: Vec<String> = axes
                     .iter()
                     .zip(p)
@@ -174,14 +170,37 @@ pub fn sweep(args: SweepArgs) -> Result<()> {
             })
         })
         .collect::<Result<_>>()?;
+    let failed: Vec<(&Vec<f64>, &String)> = points
+        .iter()
+        .zip(&results)
+        .filter_map(|(p, (_, note))| note.as_ref().map(|n| (p, n)))
+        .collect();
+    if failed.len() == points.len() {
+        bail!(
+            "no sweep point has figures of merit; the first: {}",
+            failed[0].1
+        );
+    }
+    for (p, note) in &failed {
+        let at: Vec<String> = axes
+            .iter()
+            .zip(p.iter())
+            .map(|(a, v)| format!("{}={v}", a.key))
+            .collect();
+        eprintln!(
+            "warning: sweep point {}: {note} (its row is empty)",
+            at.join(", ")
+        );
+    }
+    let rows: Vec<&Vec<f64>> = results.iter().map(|(r, _)| r).collect();
 
     let mut csv = String::new();
     for a in &axes {
         let _ = write!(csv, "{},", a.key);
     }
     csv.push_str(&FIGURES.join(","));
-    csv.push('\n');
-    for (p, r) in points.iter().zip(&rows) {
+    csv.push_str(",note\n");
+    for (p, (r, note)) in points.iter().zip(&results) {
         for v in p {
             let _ = write!(csv, "{v},");
         }
@@ -196,6 +215,11 @@ pub fn sweep(args: SweepArgs) -> Result<()> {
             })
             .collect();
         csv.push_str(&cells.join(","));
+        csv.push(',');
+        if let Some(n) = note {
+            // One CSV field: quoted, inner quotes doubled, on one line.
+            let _ = write!(csv, "\"{}\"", n.replace('"', "\"\"").replace('\n', " "));
+        }
         csv.push('\n');
     }
     let set = eoir::io::output::ProductSet::begin(&args.output)?;

@@ -11,7 +11,7 @@ use eoir::calibration::{band_radiance_lut, Calibration, CalibrationOptions};
 use eoir::detector::DetectorInstance;
 use eoir::io::output::ProductSet;
 
-use crate::cli::run::SensorArgs;
+use crate::cli::sensor_args::SensorArgs;
 
 /// Calibration options for a NUC of `degree` with the blackbody temperatures
 /// `temperatures_k` (empty: the sensor file's `[calibration]`, else chosen from the sensor's

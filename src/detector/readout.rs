@@ -35,15 +35,18 @@
 //! an amplitude given as σ per frame is turned into A with that relation. The series is
 //! drawn in the Fourier domain (Timmer & König 1995, A&A 300, 707: independent Gaussian
 //! real and imaginary parts per frequency bin, with the variance of the PSD integrated over
-//! the bin), inverted with one real FFT on a grid at least twice the series length, and the
-//! first N samples kept, so the series is not periodic over the frame (NGHXRG also
-//! generates twice the length and keeps half). The draws and the FFT are in single
-//! precision (relative rounding ≈ 6e-8 of the noise, far below any effect on its
-//! statistics), which halves their cost.
+//! the bin), inverted with one real FFT on a grid of L ≥ 2N samples, and the first N
+//! samples kept, so the series is not periodic over the frame (NGHXRG also generates twice
+//! the length and keeps half). The periodic series' covariance at lag τ is the model's,
+//! `A²·[ln(N/2) − Cin(πτ) + Cin(2πτ/N)]`, with the lags τ + mL aliased onto it: within
+//! 1.1 % of the variance at every lag of the frame with L = 2N (a grid of 1.25 N: 4.4 %;
+//! `pink_covariance_over_the_frame_matches_the_model_at_every_lag`). The draws and the
+//! FFT are in single precision (relative rounding ≈ 6e-8 of the noise, far below any
+//! effect on its statistics), which halves their cost.
 
 use std::cell::RefCell;
 
-use ndarray::{Array2, Axis};
+use ndarray::{Array2, ArrayView1, ArrayViewMut1, Axis};
 use num_complex::Complex;
 use rand::RngExt;
 use rand_distr::StandardNormal;
@@ -271,20 +274,16 @@ impl Clock {
         }
     }
 
-    /// Column read by output `o` at its `j`-th read of a row.
-    fn col(&self, o: usize, j: usize) -> usize {
-        if self.mirrored && o % 2 == 1 {
-            o * self.width + self.width - 1 - j
-        } else {
-            o * self.width + j
-        }
+    /// `true` when output `o` reads its stripe right to left.
+    fn reversed(&self, o: usize) -> bool {
+        self.mirrored && o % 2 == 1
     }
 
     /// Output and position in the read of a row of column `col`.
     fn output_and_read(&self, col: usize) -> (usize, usize) {
         let o = col / self.width.max(1);
         let k = col - o * self.width;
-        let j = if self.mirrored && o % 2 == 1 {
+        let j = if self.reversed(o) {
             self.width - 1 - k
         } else {
             k
@@ -300,7 +299,7 @@ impl Clock {
 
 /// A pink series of `len` samples, each `step` ticks apart, in a frame of `frame_ticks`
 /// ticks: PSD A²/f from f_lo = 1/(frame_ticks·dt) to the Nyquist frequency 1/(2·step·dt).
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 struct PinkSeries {
     len: usize,
     step: usize,
@@ -332,49 +331,144 @@ impl PinkSeries {
         }
     }
 
-    /// One realisation with density `a`, drawn from `rng`.
+    /// Length L of the FFT grid: the smallest even 5-smooth length ≥ 2·len
+    /// ([`crate::fft_size::next_fast_even_len`]), so the kept `len` samples do not wrap
+    /// around (module docs).
+    fn grid_len(&self) -> usize {
+        crate::fft_size::next_fast_even_len(2 * self.len)
+    }
+
+    /// Standard deviation per unit density of each bin's Gaussian parts (the bin table).
     ///
-    /// On an FFT grid of L ≥ 2·len samples (frequency step Δf = 1/(L·step·dt)), bin k
-    /// covers [(k − ½)Δf, (k + ½)Δf] ∩ [f_lo, f_N] and gets the variance
+    /// On the FFT grid of L samples (frequency step Δf = 1/(L·step·dt)), bin k covers
+    /// [(k − ½)Δf, (k + ½)Δf] ∩ [f_lo, f_N] and gets the variance
     /// `P_k = ∫ A²/f df = A²·ln(hi/lo)` over that band: split evenly between the ±k
-    /// complex amplitudes (each Gaussian real and imaginary parts of variance P_k/4), the
-    /// Nyquist bin real with variance P_k. The unnormalised inverse real FFT then gives a
-    /// stationary series of variance Σ P_k = A²·ln(f_N/f_lo) exactly.
-    fn draw(&self, a: f64, rng: &mut Xoshiro256PlusPlus) -> Vec<f32> {
-        let l = crate::fft_size::next_fast_even_len(2 * self.len);
+    /// complex amplitudes (each Gaussian real and imaginary parts of variance P_k/4, so a
+    /// standard deviation `½·√ln(hi/lo)` per unit A), the Nyquist bin real with variance
+    /// P_k. Bins wholly below f_lo get 0. The table depends only on the series' shape,
+    /// not on the density or the draws, so it is computed once per shape and thread.
+    fn bin_table(&self) -> BinTable {
+        self.bin_table_on(self.grid_len())
+    }
+
+    /// [`PinkSeries::bin_table`] on a grid of `l` samples (even, ≥ 2).
+    fn bin_table_on(&self, l: usize) -> BinTable {
         let half = l / 2;
         // In units of Δf: f_lo = L·step/frame_ticks, f_N = L/2.
         let lo_bins = (l * self.step) as f64 / self.frame_ticks as f64;
-        let mut spec = vec![Complex::new(0.0f32, 0.0); half + 1];
-        for (k, s) in spec.iter_mut().enumerate().skip(1) {
+        let mut sd = vec![0.0f32; half + 1];
+        let mut first = half + 1;
+        for (k, s) in sd.iter_mut().enumerate().skip(1) {
             let hi = (k as f64 + 0.5).min(half as f64);
             let lo = (k as f64 - 0.5).max(lo_bins);
             if hi <= lo {
                 continue;
             }
-            let p = a * a * log_ratio(hi, lo);
-            if k < half {
-                let amp = (0.5 * p.sqrt()) as f32;
-                let re: f32 = rng.sample(StandardNormal);
-                let im: f32 = rng.sample(StandardNormal);
-                *s = Complex::new(amp * re, amp * im);
+            first = first.min(k);
+            let band = log_ratio(hi, lo);
+            *s = if k < half {
+                (0.5 * band.sqrt()) as f32
             } else {
-                let re: f32 = rng.sample(StandardNormal);
-                *s = Complex::new(p.sqrt() as f32 * re, 0.0);
-            }
+                band.sqrt() as f32
+            };
         }
-        let mut out = vec![0.0f32; l];
-        PLANNER.with(|planner| {
-            let plan = planner.borrow_mut().plan_fft_inverse(l);
-            // The DC and Nyquist imaginary parts are exactly 0 (set above), the only
-            // condition under which realfft's inverse can fail; if it ever did, the
-            // series would stay 0 rather than panic.
-            if plan.process(&mut spec, &mut out).is_err() {
-                out.iter_mut().for_each(|v| *v = 0.0);
+        BinTable {
+            series: *self,
+            first,
+            sd,
+        }
+    }
+
+    /// One realisation with density `a`, drawn from `rng`, written into `dst` (`len`
+    /// samples).
+    ///
+    /// Each bin k ≥ the first in the band (DC and the bins below f_lo stay 0 and draw
+    /// nothing) takes its real then its imaginary part from `rng` (the Nyquist bin only a
+    /// real part), scaled by `a` times the bin table's standard deviation
+    /// ([`PinkSeries::bin_table`], Timmer & König 1995); the unnormalised inverse real FFT
+    /// then gives a stationary series of variance Σ P_k = A²·ln(f_N/f_lo) exactly, and the
+    /// first `len` of its L samples are kept. The plan, the table and the buffers are the
+    /// thread's own ([`Synthesis`]), reused from series to series and frame to frame.
+    fn draw_into(&self, a: f64, rng: &mut Xoshiro256PlusPlus, dst: &mut [f32]) {
+        SYNTHESIS.with(|s| s.borrow_mut().draw(self, a, rng, dst));
+    }
+}
+
+/// The bin table of one series shape ([`PinkSeries::bin_table`]).
+struct BinTable {
+    series: PinkSeries,
+    /// First bin with a non-zero standard deviation (`sd.len()` if none).
+    first: usize,
+    /// Standard deviation per unit density of each bin's real and imaginary parts.
+    sd: Vec<f32>,
+}
+
+/// Bin tables kept per thread (a frame uses at most two shapes: every tick and every
+/// second tick).
+const MAX_TABLES: usize = 4;
+
+/// One thread's tools for drawing pink series: the real-FFT planner (plans cached by
+/// length), the bin tables of the last shapes drawn, and the spectrum, grid and FFT
+/// scratch buffers, reused so that a frame allocates nothing per series.
+#[derive(Default)]
+struct Synthesis {
+    planner: RealFftPlanner<f32>,
+    tables: Vec<BinTable>,
+    spectrum: Vec<Complex<f32>>,
+    grid: Vec<f32>,
+    scratch: Vec<Complex<f32>>,
+}
+
+impl Synthesis {
+    /// [`PinkSeries::draw_into`] with this thread's plan, table and buffers.
+    fn draw(&mut self, series: &PinkSeries, a: f64, rng: &mut Xoshiro256PlusPlus, dst: &mut [f32]) {
+        let Synthesis {
+            planner,
+            tables,
+            spectrum,
+            grid,
+            scratch,
+        } = self;
+        let t = match tables.iter().position(|t| t.series == *series) {
+            Some(i) => i,
+            None => {
+                if tables.len() == MAX_TABLES {
+                    tables.remove(0);
+                }
+                tables.push(series.bin_table());
+                tables.len() - 1
             }
-        });
-        out.truncate(self.len);
-        out
+        };
+        let table = &tables[t];
+        let l = series.grid_len();
+        let half = l / 2;
+        let a = a as f32;
+        // Every bin from `first` on is written below; only those before it are cleared
+        // (the inverse FFT uses the spectrum as workspace).
+        spectrum.resize(half + 1, Complex::new(0.0, 0.0));
+        let first = table.first.min(half + 1);
+        spectrum[..first].fill(Complex::new(0.0, 0.0));
+        for (s, &sd) in spectrum[first..half].iter_mut().zip(&table.sd[first..half]) {
+            let amp = a * sd;
+            let re: f32 = rng.sample(StandardNormal);
+            let im: f32 = rng.sample(StandardNormal);
+            *s = Complex::new(amp * re, amp * im);
+        }
+        if first <= half {
+            let re: f32 = rng.sample(StandardNormal);
+            spectrum[half] = Complex::new(a * table.sd[half] * re, 0.0);
+        }
+        let plan = planner.plan_fft_inverse(l);
+        grid.resize(l, 0.0);
+        scratch.resize(plan.get_scratch_len(), Complex::new(0.0, 0.0));
+        // The DC and Nyquist imaginary parts are exactly 0 (set above), the only
+        // condition under which realfft's inverse can fail; if it ever did, the series
+        // would stay 0 rather than panic.
+        if plan.process_with_scratch(spectrum, grid, scratch).is_err() {
+            grid.iter_mut().for_each(|v| *v = 0.0);
+        }
+        let n = dst.len().min(series.len).min(l);
+        dst[..n].copy_from_slice(&grid[..n]);
     }
 }
 
@@ -393,8 +487,8 @@ fn log_ratio(hi: f64, lo: f64) -> f64 {
 }
 
 thread_local! {
-    /// One real-FFT planner per thread (plans are cached by length).
-    static PLANNER: RefCell<RealFftPlanner<f32>> = RefCell::new(RealFftPlanner::new());
+    /// Each thread's plans, bin tables and buffers for the pink series.
+    static SYNTHESIS: RefCell<Synthesis> = RefCell::new(Synthesis::default());
 }
 
 /// One pink series to draw: its stream and its density.
@@ -476,21 +570,37 @@ pub fn readout_noise_e(
     if jobs.is_empty() && cfg.row_sigma_e == 0.0 {
         return out;
     }
-    let series: Vec<Vec<f32>> = jobs
-        .par_iter()
-        .map(|j| {
+    // One buffer for every series, cut into one slice per job; each job's stream depends
+    // only on its key, so the thread that draws it does not matter.
+    let mut buffer = vec![0.0f32; jobs.iter().map(|j| j.series.len).sum()];
+    let mut slices: Vec<&mut [f32]> = Vec::with_capacity(jobs.len());
+    let mut rest = buffer.as_mut_slice();
+    for j in &jobs {
+        let (head, tail) = rest.split_at_mut(j.series.len);
+        slices.push(head);
+        rest = tail;
+    }
+    jobs.par_iter()
+        .zip(slices.into_par_iter())
+        .for_each(|(j, dst)| {
             let mut rng = temporal_stream(seed, j.effect, exposure, frame, j.key);
-            j.series.draw(j.density, &mut rng)
-        })
-        .collect();
-    let mut it = series.iter();
-    let pink_s: Vec<&Vec<f32>> = if pink > 0.0 {
+            j.series.draw_into(j.density, &mut rng, dst);
+        });
+    let mut series = Vec::with_capacity(jobs.len());
+    let mut rest = buffer.as_slice();
+    for j in &jobs {
+        let (head, tail) = rest.split_at(j.series.len);
+        series.push(head);
+        rest = tail;
+    }
+    let mut it = series.into_iter();
+    let pink_s: Vec<&[f32]> = if pink > 0.0 {
         it.by_ref().take(clock.outputs).collect()
     } else {
         Vec::new()
     };
-    let corr_s: Option<&Vec<f32>> = if correlated > 0.0 { it.next() } else { None };
-    let acn_s: Vec<&Vec<f32>> = it.collect();
+    let corr_s: Option<&[f32]> = if correlated > 0.0 { it.next() } else { None };
+    let acn_s: Vec<&[f32]> = it.collect();
 
     let row_offset: Vec<f64> = if cfg.row_sigma_e > 0.0 {
         let mut rng = temporal_stream(seed, Effect::ReadoutRow, exposure, frame, 0);
@@ -505,27 +615,58 @@ pub fn readout_noise_e(
         .into_par_iter()
         .enumerate()
         .for_each(|(r, mut line)| {
-            let base = r * clock.stride;
-            for o in 0..clock.outputs {
-                let own = pink_s.get(o);
-                for j in 0..clock.width {
-                    let t = base + j;
-                    let c = clock.col(o, j);
-                    let mut v = 0.0;
-                    if let Some(s) = own {
-                        v += f64::from(s[t]);
+            with_row_slice(&mut line, |line| {
+                let base = r * clock.stride;
+                let w = clock.width;
+                for (o, stripe) in line.chunks_exact_mut(w).enumerate() {
+                    // Position k of the stripe is the output's read j = k, or w − 1 − k
+                    // when it reads right to left: its tick is base + j.
+                    let reversed = clock.reversed(o);
+                    let mut add = |s: &[f32]| {
+                        let s = &s[base..base + w];
+                        if reversed {
+                            for (v, x) in stripe.iter_mut().zip(s.iter().rev()) {
+                                *v += f64::from(*x);
+                            }
+                        } else {
+                            for (v, x) in stripe.iter_mut().zip(s) {
+                                *v += f64::from(*x);
+                            }
+                        }
+                    };
+                    if let Some(s) = pink_s.get(o) {
+                        add(s);
                     }
                     if let Some(s) = corr_s {
-                        v += f64::from(s[t]);
+                        add(s);
                     }
-                    if let Some(s) = acn_s.get(2 * o + c % 2) {
-                        v += f64::from(s[t / 2]);
+                    if let (Some(even), Some(odd)) = (acn_s.get(2 * o), acn_s.get(2 * o + 1)) {
+                        // Column o·w + k has the parity of (o·w + k); tick t takes
+                        // sample ⌊t/2⌋ of that parity's series.
+                        for (k, v) in stripe.iter_mut().enumerate() {
+                            let j = if reversed { w - 1 - k } else { k };
+                            let s = if (o * w + k) % 2 == 0 { even } else { odd };
+                            *v += f64::from(s[(base + j) / 2]);
+                        }
                     }
-                    line[c] = v + row_offset[r];
+                    for v in stripe.iter_mut() {
+                        *v += row_offset[r];
+                    }
                 }
-            }
+            });
         });
     out
+}
+
+/// Runs `f` on the row `line` as a contiguous slice (a copy when the view is strided).
+fn with_row_slice(line: &mut ArrayViewMut1<f64>, f: impl FnOnce(&mut [f64])) {
+    if let Some(s) = line.as_slice_mut() {
+        f(s);
+    } else {
+        let mut copy = line.to_vec();
+        f(&mut copy);
+        line.assign(&ArrayView1::from(&copy[..]));
+    }
 }
 
 /// Electronic crosstalk between outputs: every pixel gets Σ_p M[o][p]·v_p of the pixels
@@ -554,16 +695,32 @@ pub fn apply_output_crosstalk(cfg: &ReadoutNoiseConfig, values_e: &mut Array2<f6
         return;
     }
     let clock = Clock::new(cfg, rows, cols);
+    let w = clock.width;
     values_e
         .axis_iter_mut(Axis(0))
         .into_par_iter()
-        .for_each(|mut line| {
-            let src = line.to_vec();
-            for j in 0..clock.width {
+        .for_each_init(Vec::new, |src, mut line| {
+            with_row_slice(&mut line, |line| {
+                src.clear();
+                src.extend_from_slice(line);
+                // Position k of output o's stripe is read at the tick when output p reads
+                // position k of its own stripe if both read in the same direction, and
+                // position w − 1 − k if one of them is mirrored. For each victim pixel
+                // the couplings are added in the matrix's order.
                 for &(o, p, c) in &couplings {
-                    line[clock.col(o, j)] += c * src[clock.col(p, j)];
+                    let from = &src[p * w..(p + 1) * w];
+                    let to = &mut line[o * w..(o + 1) * w];
+                    if clock.reversed(o) == clock.reversed(p) {
+                        for (v, x) in to.iter_mut().zip(from) {
+                            *v += c * x;
+                        }
+                    } else {
+                        for (v, x) in to.iter_mut().zip(from.iter().rev()) {
+                            *v += c * x;
+                        }
+                    }
                 }
-            }
+            });
         });
 }
 

@@ -57,119 +57,11 @@ use num_complex::Complex;
 use rayon::prelude::*;
 use realfft::{ComplexToReal, RealFftPlanner};
 
+pub use super::fft_float::{FftFloat, RowStores};
 use super::r2c::RealForward;
-#[cfg(target_arch = "x86_64")]
-use super::transpose::store_tile8_transposed_avx;
-use super::transpose::{gather_columns, scatter_columns, store_tile_transposed_scalar};
+use super::transpose::{gather_columns, scatter_columns};
 pub use super::transpose::{untranspose, TILE_ROWS};
-use rustfft::{Fft, FftNum, FftPlanner};
-
-/// Floating-point type of a transform (f32 or f64), with lossless widening to f64.
-pub trait FftFloat: FftNum + Copy {
-    /// Nearest value of this type (rounding for f32).
-    fn nearest_from_f64(x: f64) -> Self;
-    /// Exact widening to f64.
-    fn widen(self) -> f64;
-
-    /// Stores rows `0..nr` of `tile` (`[nr][hc]`, row-major) transposed: element u of row
-    /// `dr` goes to `pieces[u][t0 + dr]` (the transposing store of
-    /// [`RealFft2::rows_forward_transposed`]), with `stores` as a hint (the f32 AVX store
-    /// streams aligned lines for [`RowStores::Streaming`]). A pure copy: the same bits
-    /// whatever the implementation.
-    fn store_tile_transposed(
-        tile: &[Complex<Self>],
-        hc: usize,
-        nr: usize,
-        t0: usize,
-        pieces: &mut [&mut [Complex<Self>]],
-        _stores: RowStores,
-    ) {
-        store_tile_transposed_scalar(tile, hc, nr, t0, pieces, 0);
-    }
-
-    /// The untangling step of the real-to-complex row transform (`imaging::r2c`): pair i
-    /// is `left[i]` with `right[right.len() − 1 − i]` and twiddle `tw[i]` (all three the
-    /// same length). The same bits whatever the implementation.
-    fn untangle_r2c(tw: &[Complex<Self>], left: &mut [Complex<Self>], right: &mut [Complex<Self>]) {
-        super::r2c::untangle_pairs_scalar(tw, left, right);
-    }
-
-    /// Whether every value is physical radiance (finite and ≥ 0, at most `f32::MAX`):
-    /// [`crate::scene::radiance_is_physical`] for values that are exact copies of f32
-    /// input samples, as the image part of a padded row is.
-    fn all_physical(values: &[Self]) -> bool {
-        let max = f32::MAX as f64;
-        values
-            .iter()
-            .fold(true, |ok, v| ok & (v.widen() >= 0.0) & (v.widen() <= max))
-    }
-
-    /// The same slices typed as f32, if `Self` is f32 (for loops written for f32 data
-    /// only, such as the AVX2 accumulation of [`super::accumulate_chunk`]); `None` for f64.
-    fn as_f32_slices<const N: usize>(
-        slices: [&[Complex<Self>]; N],
-    ) -> Option<[&[Complex<f32>]; N]> {
-        let _ = slices;
-        None
-    }
-}
-
-impl FftFloat for f32 {
-    fn all_physical(values: &[Self]) -> bool {
-        crate::scene::radiance_is_physical(values)
-    }
-    fn as_f32_slices<const N: usize>(
-        slices: [&[Complex<Self>]; N],
-    ) -> Option<[&[Complex<f32>]; N]> {
-        Some(slices)
-    }
-    fn untangle_r2c(tw: &[Complex<Self>], left: &mut [Complex<Self>], right: &mut [Complex<Self>]) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx") {
-            // SAFETY: the CPU supports AVX (checked just above).
-            unsafe { super::r2c::untangle_pairs_f32_avx(tw, left, right) };
-            return;
-        }
-        super::r2c::untangle_pairs_scalar(tw, left, right);
-    }
-    #[inline]
-    fn nearest_from_f64(x: f64) -> Self {
-        x as f32
-    }
-    #[inline]
-    fn widen(self) -> f64 {
-        self as f64
-    }
-    fn store_tile_transposed(
-        tile: &[Complex<Self>],
-        hc: usize,
-        nr: usize,
-        t0: usize,
-        pieces: &mut [&mut [Complex<Self>]],
-        stores: RowStores,
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if nr == TILE_ROWS && std::arch::is_x86_feature_detected!("avx") {
-            let streaming = stores == RowStores::Streaming;
-            // SAFETY: the CPU supports AVX (checked just above).
-            unsafe { store_tile8_transposed_avx(tile, hc, t0, pieces, streaming) };
-            return;
-        }
-        let _ = stores;
-        store_tile_transposed_scalar(tile, hc, nr, t0, pieces, 0);
-    }
-}
-
-impl FftFloat for f64 {
-    #[inline]
-    fn nearest_from_f64(x: f64) -> Self {
-        x
-    }
-    #[inline]
-    fn widen(self) -> f64 {
-        self
-    }
-}
+use rustfft::{Fft, FftPlanner};
 
 /// Precision of the per-band forward transforms of the imaging engine. The accumulation
 /// over bands, the OTF, the inverse transform and the sampling are f64 in both cases.
@@ -206,19 +98,6 @@ impl FromStr for FftPrecision {
             )),
         }
     }
-}
-
-/// How the row pass writes its spectra ([`RealFft2::rows_forward_transposed`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum RowStores {
-    /// Ordinary stores: the spectra stay in cache for a reader that comes soon, while
-    /// they still fit there.
-    Cached,
-    /// Non-temporal stores where the destination is aligned (a [`SpectrumBuffer`]), f32
-    /// on CPUs with AVX: each 64-byte line is written without first being read from
-    /// memory (no read-for-ownership), and not kept in cache. For spectra too large to be
-    /// read back from the cache anyway.
-    Streaming,
 }
 
 /// Waits until this thread's non-temporal stores are globally visible (`sfence` on

@@ -16,6 +16,17 @@
 //! ([`super::fft::RealFft2::inverse_transposed_rows_with`]) it replaces, with the same
 //! values to rounding (tests compare the two). Along the rows the half spectrum of a real
 //! row is folded with its Hermitian mirror, `X[N − u] = conj X[u]`.
+//!
+//! **Rows that share their columns** ([`LatticeInverse::sample_common_x`], a global
+//! shutter's frame): when every wanted row is sampled at the same columns with the same
+//! sub-sample shift, the fold along the rows is the same linear map for every row, so it
+//! commutes with the column transforms and is done first, on the spectrum: column u of
+//! the half spectrum lands on lattice bin `q = u mod M_x` times its shift and start
+//! phases, and the mirrored bins take the conjugate-reversed column (the inverse DFT of
+//! `conj Y[(M − v') mod M]` is `conj` of the inverse DFT of `Y`). Only `M_x/2 + 1` column
+//! transforms remain instead of `N_x/2 + 1`, and each row is one real inverse of length
+//! `M_x`. Samples of a column that are exactly 0 (the scene grid's taper zeroes the
+//! corners of the spectrum, [`super::scene_band`]) are skipped: their terms add nothing.
 
 use std::sync::Arc;
 
@@ -61,6 +72,133 @@ fn unit_circle(n: usize) -> Vec<Complex64> {
 /// Fills a column's factors: `(u, out)` with `out` one factor per row frequency.
 pub type ColumnFill<'a> = &'a (dyn Fn(usize, &mut [Complex64]) + Sync);
 
+/// Fills column u's factors at the row frequencies outside a gap: `(u, (a, b), out)`
+/// must set `out[v]` for every `v < a` and `v ≥ b` (rows `a..b` are not read).
+pub type ColumnFillOutside<'a> = &'a (dyn Fn(usize, (usize, usize), &mut [Complex64]) + Sync);
+
+/// The run of exact zeros around the middle of a column held in the real FFT's order
+/// (0, Δ, 2Δ, …, then the negative half): `(a, b)` with `col[a..b]` all 0 and
+/// `a ≤ rows/2 + 1 ≤ b` (`a == b`: none). The highest frequencies of both signs lie
+/// there, where the scene grid's taper zeroes the spectrum.
+pub fn zero_gap(col: &[Complex64]) -> (usize, usize) {
+    let rows = col.len();
+    let split = (rows / 2 + 1).min(rows);
+    let zero = |z: &Complex64| z.re == 0.0 && z.im == 0.0;
+    let mut a = split;
+    while a > 0 && zero(&col[a - 1]) {
+        a -= 1;
+    }
+    let mut b = split;
+    while b < rows && zero(&col[b]) {
+        b += 1;
+    }
+    (a, b)
+}
+
+/// `e^{2πi u s/cols}`, the factor of a shift by `s` samples at column frequency u of a
+/// `cols`-long real row; on an even row's Nyquist bin the average of the ± ramps,
+/// `cos(πs)` ([`super::sampling::shift_phase`]).
+fn shift_factor(cols: usize, u: usize, s: f64) -> Complex64 {
+    use std::f64::consts::PI;
+    if s == 0.0 {
+        Complex64::new(1.0, 0.0)
+    } else if cols % 2 == 0 && u == cols / 2 {
+        Complex64::new((PI * s).cos(), 0.0)
+    } else {
+        Complex64::from_polar(1.0, 2.0 * PI * (u as f64) * s / cols as f64)
+    }
+}
+
+/// `y ← (y + conj y[(M − v) mod M]) / 2`: the spectrum of the real part of `y`'s inverse
+/// DFT.
+fn symmetrize(y: &mut [Complex64]) {
+    let my = y.len();
+    let orig = y.to_vec();
+    for (v, d) in y.iter_mut().enumerate() {
+        *d = 0.5 * (orig[v] + orig[(my - v) % my].conj());
+    }
+}
+
+/// One column folded onto `my` bins along the rows (see the [module documentation](self)):
+/// `y[v'] = ramp[v'] · Σ_m col[v]·h[v]·alias[v]` over `v = v' + m·my` outside the zero gap
+/// `gap` (whose terms are 0), in the order of [`LatticeInverse::sample`]. On x86-64 with
+/// AVX2 the same loops compiled for it (the same operations on every value, so the same
+/// result to the bit: no fused multiply-add is allowed to form).
+fn fold_column(
+    col: &[Complex64],
+    h: Option<&[Complex64]>,
+    alias: &[Complex64],
+    ramp: &[Complex64],
+    gap: (usize, usize),
+    y: &mut [Complex64],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2 (checked just above).
+        return unsafe { fold_column_avx2(col, h, alias, ramp, gap, y) };
+    }
+    fold_column_portable(col, h, alias, ramp, gap, y)
+}
+
+/// [`fold_column`] compiled for AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2 (`is_x86_feature_detected!("avx2")`).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn fold_column_avx2(
+    col: &[Complex64],
+    h: Option<&[Complex64]>,
+    alias: &[Complex64],
+    ramp: &[Complex64],
+    gap: (usize, usize),
+    y: &mut [Complex64],
+) {
+    fold_column_portable(col, h, alias, ramp, gap, y)
+}
+
+/// [`fold_column`] for any CPU.
+#[inline(always)]
+fn fold_column_portable(
+    col: &[Complex64],
+    h: Option<&[Complex64]>,
+    alias: &[Complex64],
+    ramp: &[Complex64],
+    gap: (usize, usize),
+    y: &mut [Complex64],
+) {
+    let (rows, my) = (col.len(), y.len());
+    y.fill(Complex64::new(0.0, 0.0));
+    let mut b0 = 0;
+    while b0 < rows {
+        let b1 = b0 + my;
+        for (s, e) in [(b0, gap.0.clamp(b0, b1)), (gap.1.clamp(b0, b1), b1)] {
+            if s >= e {
+                continue;
+            }
+            let d = &mut y[s - b0..e - b0];
+            match h {
+                Some(h) => {
+                    for (((d, s), hv), a) in
+                        d.iter_mut().zip(&col[s..e]).zip(&h[s..e]).zip(&alias[s..e])
+                    {
+                        *d += s * hv * a;
+                    }
+                }
+                None => {
+                    for ((d, s), a) in d.iter_mut().zip(&col[s..e]).zip(&alias[s..e]) {
+                        *d += s * a;
+                    }
+                }
+            }
+        }
+        b0 = b1;
+    }
+    for (d, p) in y.iter_mut().zip(ramp) {
+        *d *= p;
+    }
+}
+
 /// What the column fold multiplies the spectrum by before folding: per column frequency
 /// u, a factor for every row frequency (e.g. a motion blur), and one factor per row
 /// frequency shared by all columns (e.g. a sub-sample phase ramp).
@@ -98,9 +236,167 @@ impl LatticeInverse {
         })
     }
 
+    /// The residues `wanted[i] mod ky`, sorted, each once: the columns are folded once
+    /// per residue.
+    fn residues(&self, wanted: &[usize]) -> Vec<usize> {
+        let mut residues: Vec<usize> = wanted.iter().map(|w| w % self.ky).collect();
+        residues.sort_unstable();
+        residues.dedup();
+        residues
+    }
+
+    /// The factors of the fold along a column for the lattice rows of residue `r`: per
+    /// frame row v, `e^{2πi m r/k}` for alias m = v / M times `per_row[v]`; and per folded
+    /// bin v', `e^{2πi v' r/N}`.
+    fn fold_factors(
+        &self,
+        r: usize,
+        per_row: Option<&[Complex64]>,
+    ) -> (Vec<Complex64>, Vec<Complex64>) {
+        let (rows, my) = (self.rows, self.my);
+        let alias = (0..rows)
+            .map(|v| {
+                let a = self.unit_y[((v / my) * my * r) % rows];
+                per_row.map_or(a, |p| a * p[v])
+            })
+            .collect();
+        let ramp = (0..my).map(|v| self.unit_y[(v * r) % rows]).collect();
+        (alias, ramp)
+    }
+
+    /// The inverse transforms of length M of the folded columns (`folded`: columns of M
+    /// samples, one after another), in place.
+    fn column_inverses(&self, folded: &mut [Complex64]) {
+        let zero = Complex64::new(0.0, 0.0);
+        folded.par_chunks_mut(self.my * 16).for_each_init(
+            || vec![zero; self.col_inverse.get_inplace_scratch_len()],
+            |sc, block| self.col_inverse.process_with_scratch(block, sc),
+        );
+    }
+
+    /// The indices i of the wanted rows of residue `r` (`wanted[i] mod ky = r`).
+    fn rows_of_residue(&self, wanted: &[usize], r: usize) -> Vec<usize> {
+        (0..wanted.len())
+            .filter(|&i| wanted[i] % self.ky == r)
+            .collect()
+    }
+
     /// The number of lattice rows and columns, `(rows / ky, cols / kx)`.
     pub fn lattice_shape(&self) -> (usize, usize) {
         (self.my, self.mx)
+    }
+
+    /// Frame rows `wanted` (row i of the result is frame row `wanted[i]`), all at the
+    /// same frame columns `x_start + j·kx` (`j < n_cols`) of the frame shifted by `x_shift`
+    /// samples along x (bin u times `e^{2πi u·x_shift/cols}`, the Nyquist bin of an even
+    /// row `cos(π·x_shift)`), of the real frame whose half spectrum, held transposed
+    /// (`spec_t[u·rows + v]`), times `per_column` (filled outside each column's zero gap,
+    /// [`zero_gap`]) and `per_row` is the frame's spectrum: the fold along the rows done
+    /// on the spectrum, before the column transforms (see the [module documentation](self)).
+    /// Equals [`LatticeInverse::sample`] with the same factors, every row starting at
+    /// `x_start` and shifted by `x_shift`, to rounding (test). `spec_t` is not changed.
+    ///
+    /// # Panics
+    /// If the lengths do not match the frame, a wanted row is outside it, or `n_cols`
+    /// exceeds `cols / kx` (caller errors).
+    #[allow(clippy::too_many_arguments)]
+    pub fn sample_common_x(
+        &self,
+        spec_t: &[Complex64],
+        per_column: Option<ColumnFillOutside<'_>>,
+        per_row: Option<&[Complex64]>,
+        wanted: &[usize],
+        x_start: usize,
+        x_shift: f64,
+        n_cols: usize,
+    ) -> Array2<f64> {
+        let (rows, cols, my, mx) = (self.rows, self.cols, self.my, self.mx);
+        let hc = cols / 2 + 1;
+        let hq = mx / 2 + 1;
+        assert_eq!(
+            spec_t.len(),
+            rows * hc,
+            "LatticeInverse::sample_common_x input length"
+        );
+        assert!(n_cols <= mx, "LatticeInverse::sample_common_x n_cols");
+        assert!(
+            wanted.iter().all(|&y| y < rows),
+            "LatticeInverse::sample_common_x row"
+        );
+        assert!(
+            per_row.is_none_or(|p| p.len() == rows),
+            "LatticeInverse::sample_common_x per_row length"
+        );
+        let mut out = Array2::<f64>::zeros((wanted.len(), n_cols));
+        let zero = Complex64::new(0.0, 0.0);
+        let c = x_start % cols;
+        // The zero gap of every column, once for all residues.
+        let gaps: Vec<(usize, usize)> = spec_t.par_chunks(rows).map(zero_gap).collect();
+        let mut folded = vec![zero; hq * my];
+        for r in self.residues(wanted) {
+            let (alias, ramp) = self.fold_factors(r, per_row);
+            folded.par_chunks_mut(my).enumerate().for_each_init(
+                || (vec![zero; rows], vec![zero; my]),
+                |(h, y), (q, dst)| {
+                    dst.fill(zero);
+                    for m in 0..self.kx {
+                        // Bin u of the full row lands on lattice bin q; above the half
+                        // spectrum it is the mirror of column cols − u.
+                        let u = q + m * mx;
+                        let (src, mirror) = if u < hc { (u, false) } else { (cols - u, true) };
+                        let col = &spec_t[src * rows..(src + 1) * rows];
+                        let gap = gaps[src];
+                        if let Some(f) = per_column {
+                            f(src, gap, h);
+                        }
+                        fold_column(col, per_column.map(|_| &h[..]), &alias, &ramp, gap, y);
+                        // The real inverse ignores the imaginary part of the DC and an even
+                        // row's Nyquist bin: keep the real part of those columns' rows.
+                        if src == 0 || (cols % 2 == 0 && src == cols / 2) {
+                            symmetrize(y);
+                        }
+                        let p = shift_factor(cols, src, x_shift);
+                        let start = self.unit_x[(u * c) % cols];
+                        if mirror {
+                            for (v, d) in dst.iter_mut().enumerate() {
+                                *d += (y[(my - v) % my] * p).conj() * start;
+                            }
+                        } else {
+                            let g = p * start;
+                            for (d, z) in dst.iter_mut().zip(y.iter()) {
+                                *d += z * g;
+                            }
+                        }
+                    }
+                },
+            );
+            self.column_inverses(&mut folded);
+            let folded: &[Complex64] = &folded;
+            let rows_here = self.rows_of_residue(wanted, r);
+            let norm = 1.0 / (rows * cols) as f64;
+            let done: Vec<(usize, Vec<f64>)> = rows_here
+                .par_iter()
+                .map_init(
+                    || (vec![zero; hq], self.c2r.make_scratch_vec(), vec![0.0; mx]),
+                    |(half, sc, line), &i| {
+                        let j = (wanted[i] - r) / self.ky;
+                        for (q, z) in half.iter_mut().enumerate() {
+                            *z = folded[q * my + j];
+                        }
+                        half[0].im = 0.0;
+                        if mx % 2 == 0 {
+                            half[mx / 2].im = 0.0;
+                        }
+                        let _ = self.c2r.process_with_scratch(half, line, sc);
+                        (i, line[..n_cols].iter().map(|v| v * norm).collect())
+                    },
+                )
+                .collect();
+            for (i, line) in done {
+                out.row_mut(i).assign(&ndarray::ArrayView1::from(&line[..]));
+            }
+        }
+        out
     }
 
     /// Frame rows `wanted` (row i of the result is frame row `wanted[i]`), each at the
@@ -142,20 +438,9 @@ impl LatticeInverse {
         );
         let mut out = Array2::<f64>::zeros((wanted.len(), n_cols));
         let zero = Complex64::new(0.0, 0.0);
-        let mut residues: Vec<usize> = wanted.iter().map(|w| w % self.ky).collect();
-        residues.sort_unstable();
-        residues.dedup();
         let mut folded = vec![zero; hc * my];
-        for r in residues {
-            // e^{2πi m r/k} for alias m = v / M times the per-row factor of v, and
-            // e^{2πi v' r/N} for every folded bin v'.
-            let alias: Vec<Complex64> = (0..rows)
-                .map(|v| {
-                    let a = self.unit_y[((v / my) * my * r) % rows];
-                    factors.per_row.map_or(a, |p| a * p[v])
-                })
-                .collect();
-            let ramp: Vec<Complex64> = (0..my).map(|v| self.unit_y[(v * r) % rows]).collect();
+        for r in self.residues(wanted) {
+            let (alias, ramp) = self.fold_factors(r, factors.per_row);
             folded.par_chunks_mut(my).enumerate().for_each_init(
                 || {
                     vec![
@@ -193,14 +478,9 @@ impl LatticeInverse {
                     }
                 },
             );
-            folded.par_chunks_mut(my * 16).for_each_init(
-                || vec![zero; self.col_inverse.get_inplace_scratch_len()],
-                |sc, block| self.col_inverse.process_with_scratch(block, sc),
-            );
+            self.column_inverses(&mut folded);
             let folded: &[Complex64] = &folded;
-            let rows_here: Vec<usize> = (0..wanted.len())
-                .filter(|&i| wanted[i] % self.ky == r)
-                .collect();
+            let rows_here = self.rows_of_residue(wanted, r);
             let done: Vec<(usize, Vec<f64>)> = rows_here
                 .par_iter()
                 .map_init(
@@ -370,6 +650,142 @@ mod tests {
             for j in 0..8 {
                 let want = img[[i, (starts[i] + j * kx) % cols]];
                 assert!((got[[i, j]] - want).abs() < 1e-11, "{i},{j}");
+            }
+        }
+    }
+
+    /// Rows that share their columns: the fold along the rows done on the spectrum equals
+    /// the full inverse of the changed spectrum (blur, row factors, a shift along x by a
+    /// fraction of a sample) sampled on the lattice, for even and odd lengths, ratios 1–4
+    /// along x, several residues and starts, a spectrum whose columns have runs of zeros
+    /// around their middle (skipped) and a blur filled only outside them.
+    #[test]
+    fn common_columns_match_the_full_inverse() {
+        for (rows, cols, ky, kx, x_start, x_shift) in [
+            (12usize, 20usize, 3usize, 2usize, 3usize, 0.37f64),
+            (15, 21, 3, 3, 1, 0.0),
+            (16, 16, 4, 4, 2, 0.81),
+            (18, 15, 2, 3, 0, 0.5),
+            (10, 9, 2, 1, 4, 0.25),
+        ] {
+            let hc = cols / 2 + 1;
+            let x = frame(rows, cols);
+            let mut spec = spectrum_t(&x);
+            // Zero the highest row frequencies of the upper columns (as a taper does).
+            for u in hc / 2..hc {
+                let cut = 1 + (u - hc / 2).min(rows / 2 - 1);
+                let mid = rows / 2;
+                for v in mid + 1 - cut.min(mid)..(mid + cut).min(rows) {
+                    spec[u * rows + v] = Complex64::new(0.0, 0.0);
+                }
+            }
+            let blur = |u: usize, v: usize| {
+                Complex64::from_polar(1.0 / (1.0 + 0.1 * (u + v) as f64), 0.3 * v as f64)
+            };
+            let fill_outside = |u: usize, gap: (usize, usize), out: &mut [Complex64]| {
+                for (v, o) in out.iter_mut().enumerate() {
+                    if v < gap.0 || v >= gap.1 {
+                        *o = blur(u, v);
+                    } else {
+                        // Rows of the gap must not be read: poison them.
+                        *o = Complex64::new(f64::NAN, f64::NAN);
+                    }
+                }
+            };
+            let per_row: Vec<Complex64> = (0..rows)
+                .map(|v| Complex64::from_polar(1.0, -0.2 * v as f64))
+                .collect();
+            let mut full = spec.clone();
+            for u in 0..hc {
+                for v in 0..rows {
+                    full[u * rows + v] *= blur(u, v) * per_row[v];
+                }
+            }
+            let wanted: Vec<usize> = (0..rows).filter(|w| w % 3 != 1).collect();
+            let fft = RealFft2::<f64>::new(rows, cols);
+            let mut img = Array2::zeros((wanted.len(), cols));
+            fft.inverse_transposed_rows_with(&mut full, &wanted, &mut img, |_, row| {
+                for (u, z) in row.iter_mut().enumerate() {
+                    *z *= shift_factor(cols, u, x_shift);
+                }
+            });
+            let li = LatticeInverse::new((rows, cols), (ky, kx)).expect("divisible");
+            let n = cols / kx - 1;
+            let got = li.sample_common_x(
+                &spec,
+                Some(&fill_outside),
+                Some(&per_row),
+                &wanted,
+                x_start,
+                x_shift,
+                n,
+            );
+            for (i, _) in wanted.iter().enumerate() {
+                for j in 0..n {
+                    let want = img[[i, (x_start + j * kx) % cols]];
+                    assert!(
+                        (got[[i, j]] - want).abs() < 1e-11,
+                        "{rows}x{cols} k {ky}x{kx}: row {i} col {j}: {} vs {want}",
+                        got[[i, j]]
+                    );
+                }
+            }
+            // Without factors: the frame's own samples.
+            let plain = li.sample_common_x(&spectrum_t(&x), None, None, &wanted, x_start, 0.0, n);
+            for (i, &w) in wanted.iter().enumerate() {
+                for j in 0..n {
+                    let want = x[[w, (x_start + j * kx) % cols]];
+                    assert!(
+                        (plain[[i, j]] - want).abs() < 1e-11,
+                        "{rows}x{cols}: {i},{j}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// The zero gap is the run of exact zeros around a column's middle, and empty
+    /// without one.
+    #[test]
+    fn zero_gap_finds_the_middle_zeros() {
+        let z = Complex64::new(0.0, 0.0);
+        let o = Complex64::new(1.0, 0.0);
+        // rows = 8: split at 5; zeros at 3..7.
+        let col = [o, o, o, z, z, z, z, o];
+        assert_eq!(zero_gap(&col), (3, 7));
+        assert_eq!(zero_gap(&[o; 7]), (4, 4));
+        // A zero elsewhere is not part of the gap.
+        let col = [z, o, o, o, z, o, o];
+        assert_eq!(zero_gap(&col), (4, 5));
+    }
+
+    /// The AVX2 build of the column fold gives the portable one's values to the bit (with
+    /// and without a blur, with a zero gap and without).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_avx2_fold_is_the_portable_fold() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let (rows, my) = (30usize, 10usize);
+        let c = |t: usize, a: f64| Complex64::new((a * t as f64).sin(), (0.7 * a * t as f64).cos());
+        let col: Vec<Complex64> = (0..rows).map(|t| c(t, 1.3)).collect();
+        let h: Vec<Complex64> = (0..rows).map(|t| c(t, 0.37)).collect();
+        let alias: Vec<Complex64> = (0..rows).map(|t| c(t, 2.1)).collect();
+        let ramp: Vec<Complex64> = (0..my).map(|t| c(t, 0.9)).collect();
+        for gap in [(16usize, 16usize), (12, 21)] {
+            for blur in [None, Some(&h[..])] {
+                let mut a = vec![Complex64::new(0.0, 0.0); my];
+                let mut b = a.clone();
+                fold_column_portable(&col, blur, &alias, &ramp, gap, &mut a);
+                // SAFETY: AVX2 is present (checked above).
+                unsafe { fold_column_avx2(&col, blur, &alias, &ramp, gap, &mut b) };
+                for (x, y) in a.iter().zip(&b) {
+                    assert_eq!(
+                        (x.re.to_bits(), x.im.to_bits()),
+                        (y.re.to_bits(), y.im.to_bits())
+                    );
+                }
             }
         }
     }

@@ -23,6 +23,7 @@
 
 mod accumulate;
 pub mod fft;
+mod fft_float;
 pub mod lattice;
 pub mod motion;
 pub mod otf_table;

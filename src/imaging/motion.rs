@@ -169,18 +169,24 @@ impl<'a> PathColumns<'a> {
 
     /// Column u's transfer function at every row frequency, into `h`.
     fn fill(&self, u: usize, h: &mut [Complex64]) {
+        self.fill_outside(u, (h.len(), h.len()), h);
+    }
+
+    /// Column u's transfer function at the row frequencies outside the rows `gap.0..gap.1`
+    /// (which are left as they are), into `h`.
+    fn fill_outside(&self, u: usize, gap: (usize, usize), h: &mut [Complex64]) {
         let (grid, path) = (self.grid, self.path);
         let fx = grid.fx[u];
-        self.segments.column(fx, &grid.fy, h);
+        self.segments.column(fx, &grid.fy, gap, h);
         let both_x = self.nyquist_col == Some(u);
         if both_x {
             let mut h2 = vec![Complex64::new(0.0, 0.0); h.len()];
-            self.segments.column(-fx, &grid.fy, &mut h2);
+            self.segments.column(-fx, &grid.fy, gap, &mut h2);
             for (a, b) in h.iter_mut().zip(h2.iter()) {
                 *a = 0.5 * (*a + *b);
             }
         }
-        if let Some(v) = self.nyquist_row {
+        if let Some(v) = self.nyquist_row.filter(|&v| v < gap.0 || v >= gap.1) {
             let fy = grid.fy[v];
             let xs: &[f64] = if both_x { &[1.0, -1.0] } else { &[1.0] };
             let sum: Complex64 = xs
@@ -220,15 +226,47 @@ impl Segments {
     }
 
     /// The transfer function at column frequency `fx` and every row frequency of `fy`
-    /// (the real FFT's order: 0, Δ, 2Δ, …, then the negative half), into `out`.
-    fn column(&self, fx: f64, fy: &[f64], out: &mut [Complex64]) {
+    /// (the real FFT's order: 0, Δ, 2Δ, …, then the negative half) outside the rows
+    /// `gap.0..gap.1` (`gap.0 ≤ rows/2 + 1 ≤ gap.1`, or the gap empty at the end), into
+    /// `out`; the rows of the gap are left as they are.
+    fn column(&self, fx: f64, fy: &[f64], gap: (usize, usize), out: &mut [Complex64]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            return unsafe { self.column_avx2(fx, fy, gap, out) };
+        }
+        self.column_portable(fx, fy, gap, out)
+    }
+
+    /// [`Segments::column`] compiled for AVX2: the same operations on every value (no
+    /// fused multiply-add may form), so the same result to the bit.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 (`is_x86_feature_detected!("avx2")`).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn column_avx2(&self, fx: f64, fy: &[f64], gap: (usize, usize), out: &mut [Complex64]) {
+        self.column_portable(fx, fy, gap, out)
+    }
+
+    /// [`Segments::column`] for any CPU.
+    #[inline(always)]
+    fn column_portable(&self, fx: f64, fy: &[f64], gap: (usize, usize), out: &mut [Complex64]) {
         use std::f64::consts::PI;
-        out.fill(Complex64::new(0.0, 0.0));
         let rows = fy.len();
-        // The two halves, each an arithmetic progression of fy: [0, split) and [split, rows).
-        let split = rows / 2 + 1;
+        // The two halves, each an arithmetic progression of fy: [0, split) and [split, rows),
+        // less the gap.
+        let split = (rows / 2 + 1).min(rows);
+        let (g0, g1) = if gap.0 >= gap.1 {
+            (split, split)
+        } else {
+            (gap.0.min(split), gap.1.max(split))
+        };
+        for (start, end) in [(0, g0), (g1, rows)] {
+            out[start..end].fill(Complex64::new(0.0, 0.0));
+        }
         for &(w, m, d) in &self.seg {
-            for (start, end) in [(0, split.min(rows)), (split.min(rows), rows)] {
+            for (start, end) in [(0, g0), (g1, rows)] {
                 if start >= end {
                     continue;
                 }
@@ -259,11 +297,14 @@ impl Segments {
                 let a_jump = LANES as f64 * a_step;
                 let sinc = |e: Complex64, a: f64| {
                     // Near a = 0 the ratio loses digits: the series is exact to 1e-16 there.
+                    // Both are computed and one selected (no branch: the lanes vectorise).
                     let x = PI * a;
+                    let series = 1.0 - x * x / 6.0 * (1.0 - x * x / 20.0);
+                    let ratio = e.im / x;
                     if x.abs() < 1e-3 {
-                        1.0 - x * x / 6.0 * (1.0 - x * x / 20.0)
+                        series
                     } else {
-                        e.im / x
+                        ratio
                     }
                 };
                 let mut chunks = out[start..end].chunks_exact_mut(LANES);
@@ -468,7 +509,26 @@ impl Imager {
             let wanted: Vec<usize> = bin.iter().map(|r| (r.y - s).round() as usize).collect();
             let shifts: Vec<f64> = bin.iter().map(|r| frac(r.x0)).collect();
             let starts: Vec<usize> = bin.iter().map(|r| r.x0.floor() as usize).collect();
+            let common_x = bin.iter().all(|r| r.x0 == bin[0].x0);
             let img = match &self.lattice {
+                Some(lattice) if common_x => {
+                    // Every row at the same columns (a global shutter): the fold along the
+                    // rows on the spectrum, before the column transforms.
+                    let fill_outside = |u: usize, gap: (usize, usize), h: &mut [Complex64]| {
+                        if let Some(c) = &columns {
+                            c.fill_outside(u, gap, h);
+                        }
+                    };
+                    lattice.sample_common_x(
+                        source,
+                        (fused && blur.is_some()).then_some(&fill_outside as _),
+                        (s != 0.0).then_some(&ry[..]),
+                        &wanted,
+                        starts[0],
+                        shifts[0],
+                        sx.detector_len,
+                    )
+                }
                 Some(lattice) => {
                     let factors = ColumnFactors {
                         per_column: (fused && blur.is_some()).then_some(&fill as _),
@@ -582,6 +642,40 @@ mod tests {
                         "{rows}x{cols} u {u} v {v}: {got} vs {want}"
                     );
                 }
+            }
+        }
+    }
+
+    /// The AVX2 build of a path's column gives the portable one's values to the bit, and
+    /// leaves the rows of a gap untouched.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_avx2_column_is_the_portable_column() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let points: Vec<[f64; 2]> = (0..5)
+            .map(|i| {
+                let t = i as f64 / 4.0;
+                [3e-4 * (5.0 * t).sin(), 2e-4 * t * t - 1e-4 * t]
+            })
+            .collect();
+        let segments = Segments::of(&WindowPath::from_points(&points, 0.0));
+        let grid = FrequencyGrid::real_fft(22, 20, 1e-4, 1.2e-4);
+        for gap in [(22usize, 22usize), (7, 15)] {
+            let marker = Complex64::new(7.0, -7.0);
+            let mut a = vec![marker; 22];
+            let mut b = a.clone();
+            segments.column_portable(grid.fx[3], &grid.fy, gap, &mut a);
+            // SAFETY: AVX2 is present (checked above).
+            unsafe { segments.column_avx2(grid.fx[3], &grid.fy, gap, &mut b) };
+            for (v, (x, y)) in a.iter().zip(&b).enumerate() {
+                assert_eq!(
+                    (x.re.to_bits(), x.im.to_bits()),
+                    (y.re.to_bits(), y.im.to_bits())
+                );
+                let in_gap = gap.0 < gap.1 && (gap.0..gap.1).contains(&v);
+                assert_eq!(*x == marker, in_gap, "row {v}");
             }
         }
     }

@@ -25,7 +25,11 @@ use num_complex::Complex;
 use realfft::{RealFftPlanner, RealToComplex};
 use rustfft::{Fft, FftPlanner};
 
-use super::fft::FftFloat;
+#[cfg(all(test, target_arch = "x86_64"))]
+use super::fft_float::untangle_pairs_f32_avx;
+#[cfg(test)]
+use super::fft_float::untangle_pairs_scalar;
+use super::fft_float::FftFloat;
 
 /// A planned real-to-complex transform of one length (see the module documentation).
 pub(crate) struct RealForward<T: FftFloat> {
@@ -165,100 +169,6 @@ fn untangle<T: FftFloat>(out: &mut [Complex<T>], twiddles: &[Complex<T>]) {
         let mid = &mut out[len / 2];
         mid.im = -mid.im;
     }
-}
-
-/// The portable untangling of pairs: `left[i]` pairs with `right[right.len() − 1 − i]`
-/// and twiddle `tw[i]` (`realfft` 3.5's loop, operation for operation).
-pub(crate) fn untangle_pairs_scalar<T: FftFloat>(
-    tw: &[Complex<T>],
-    left: &mut [Complex<T>],
-    right: &mut [Complex<T>],
-) {
-    let half = T::nearest_from_f64(0.5);
-    for ((w, out), out_rev) in tw.iter().zip(left.iter_mut()).zip(right.iter_mut().rev()) {
-        let sum = *out + *out_rev;
-        let diff = *out - *out_rev;
-        let twiddled_re_sum = sum * w.re;
-        let twiddled_im_sum = sum * w.im;
-        let twiddled_re_diff = diff * w.re;
-        let twiddled_im_diff = diff * w.im;
-        let half_sum_re = half * sum.re;
-        let half_diff_im = half * diff.im;
-        let output_twiddled_real = twiddled_re_sum.im + twiddled_im_diff.re;
-        let output_twiddled_im = twiddled_im_sum.im - twiddled_re_diff.re;
-        *out = Complex::new(
-            half_sum_re + output_twiddled_real,
-            half_diff_im + output_twiddled_im,
-        );
-        *out_rev = Complex::new(
-            half_sum_re - output_twiddled_real,
-            output_twiddled_im - half_diff_im,
-        );
-    }
-}
-
-/// [`untangle_pairs_scalar`] for f32 with AVX, four pairs per iteration: left samples
-/// i..i+4 and the matching right samples (loaded as one vector and reversed) are untangled
-/// lane by lane with the same IEEE operations (a − b as a + (−b) where the lanes need
-/// opposite signs: the same result bit for bit), the pairs left over by the scalar loop.
-///
-/// # Safety
-/// The CPU must support AVX (`is_x86_feature_detected!("avx")`).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx")]
-pub(crate) unsafe fn untangle_pairs_f32_avx(
-    tw: &[Complex<f32>],
-    left: &mut [Complex<f32>],
-    right: &mut [Complex<f32>],
-) {
-    use std::arch::x86_64::*;
-    let pairs = tw.len();
-    assert!(left.len() == pairs && right.len() == pairs);
-    let n4 = pairs / 4 * 4;
-    // Lanes [re, im, re, im, …]: the odd (imaginary) lanes' sign bit.
-    let odd_sign = _mm256_castsi256_ps(_mm256_setr_epi32(
-        0,
-        i32::MIN,
-        0,
-        i32::MIN,
-        0,
-        i32::MIN,
-        0,
-        i32::MIN,
-    ));
-    let half = _mm256_set1_ps(0.5);
-    // Reverses the order of four complex f32 (64-bit elements).
-    let reverse = |v: __m256| {
-        _mm256_castpd_ps(_mm256_permute2f128_pd(
-            _mm256_permute_pd(_mm256_castps_pd(v), 0b0101),
-            _mm256_permute_pd(_mm256_castps_pd(v), 0b0101),
-            0x01,
-        ))
-    };
-    for i in (0..n4).step_by(4) {
-        // Right samples of pairs i..i+4: right[pairs−1−i−3 ..= pairs−1−i], reversed.
-        let r0 = pairs - i - 4;
-        let lp = left[i..i + 4].as_mut_ptr().cast::<f32>();
-        let rp = right[r0..r0 + 4].as_mut_ptr().cast::<f32>();
-        let w = _mm256_loadu_ps(tw[i..i + 4].as_ptr().cast::<f32>());
-        let l = _mm256_loadu_ps(lp);
-        let r = reverse(_mm256_loadu_ps(rp));
-        let sum = _mm256_add_ps(l, r);
-        let diff = _mm256_sub_ps(l, r);
-        // [S_im w_re, S_im w_im] and [D_re w_im, D_re w_re].
-        let p = _mm256_mul_ps(_mm256_movehdup_ps(sum), w);
-        let q = _mm256_mul_ps(_mm256_moveldup_ps(diff), _mm256_permute_ps(w, 0b1011_0001));
-        // [S_im w_re + D_re w_im, S_im w_im − D_re w_re]: the twiddled outputs.
-        let o = _mm256_add_ps(p, _mm256_xor_ps(q, odd_sign));
-        // [½S_re, ½D_im].
-        let h = _mm256_mul_ps(half, _mm256_blend_ps(sum, diff, 0b1010_1010));
-        let out = _mm256_add_ps(h, o);
-        let out_rev = _mm256_blend_ps(_mm256_sub_ps(h, o), _mm256_sub_ps(o, h), 0b1010_1010);
-        _mm256_storeu_ps(lp, out);
-        _mm256_storeu_ps(rp, reverse(out_rev));
-    }
-    let rest = pairs - n4;
-    untangle_pairs_scalar(&tw[n4..], &mut left[n4..], &mut right[..rest]);
 }
 
 #[cfg(test)]

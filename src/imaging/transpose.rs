@@ -10,7 +10,7 @@ use num_complex::Complex;
 use rayon::prelude::*;
 
 #[cfg(doc)]
-use super::fft::{FftFloat, RowStores};
+use super::fft_float::{FftFloat, RowStores};
 
 /// The portable [`FftFloat::store_tile_transposed`], from column `u0` on.
 pub(super) fn store_tile_transposed_scalar<C: Copy>(

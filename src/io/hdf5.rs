@@ -782,6 +782,85 @@ pub fn write_bundle(
     products: &[BundleItem<'_>],
     file_attrs: &[(&str, String)],
 ) -> Result<()> {
+    let specs: Vec<BundleSpec> = products
+        .iter()
+        .map(|p| BundleSpec {
+            name: p.name,
+            attrs: p.attrs.clone(),
+        })
+        .collect();
+    write_bundle_core(path, &specs, |k| Ok(products[k].data.clone()), file_attrs)
+}
+
+/// The name and attributes of one product of a bundle written by [`write_bundle_with`].
+#[derive(Debug, Clone)]
+pub struct BundleSpec<'a> {
+    /// Dataset name (no `/`), unique in the bundle.
+    pub name: &'a str,
+    /// String attributes attached to the dataset.
+    pub attrs: Vec<(&'a str, String)>,
+}
+
+/// The pixels of one bundle product, owned (made by the caller of [`write_bundle_with`]
+/// when the product is written).
+#[derive(Debug, Clone)]
+pub enum OwnedBundleData {
+    /// Unsigned 16-bit values (digital numbers), stored as u16.
+    U16(Array2<u16>),
+    /// 32-bit floats, stored as f32.
+    F32(Array2<f32>),
+}
+
+/// [`write_bundle`] with each product's pixels made only when it is written, by
+/// `data(k)` for `specs[k]`, `k` = 0, 1, … in order: one product is held at a time (a
+/// sequence's bundle, its frames read back from disk). The same bytes as [`write_bundle`]
+/// of the same products.
+pub fn write_bundle_with(
+    path: &Path,
+    specs: &[BundleSpec<'_>],
+    data: impl FnMut(usize) -> Result<OwnedBundleData>,
+    file_attrs: &[(&str, String)],
+) -> Result<()> {
+    write_bundle_core(path, specs, data, file_attrs)
+}
+
+/// Pixels a bundle dataset is made of.
+trait BundlePixels {
+    /// Creates dataset `name` in `file` holding the pixels.
+    fn create(&self, file: &File, name: &str) -> hdf5_metno::Result<Dataset>;
+}
+
+impl BundlePixels for BundleData<'_> {
+    fn create(&self, file: &File, name: &str) -> hdf5_metno::Result<Dataset> {
+        match self {
+            BundleData::U16(a) => {
+                let a = a.as_standard_layout();
+                file.new_dataset_builder().with_data(a.view()).create(name)
+            }
+            BundleData::F32(a) => {
+                let a = a.as_standard_layout();
+                file.new_dataset_builder().with_data(a.view()).create(name)
+            }
+        }
+    }
+}
+
+impl BundlePixels for OwnedBundleData {
+    fn create(&self, file: &File, name: &str) -> hdf5_metno::Result<Dataset> {
+        match self {
+            OwnedBundleData::U16(a) => BundleData::U16(a.view()).create(file, name),
+            OwnedBundleData::F32(a) => BundleData::F32(a.view()).create(file, name),
+        }
+    }
+}
+
+/// The checks and the writing of [`write_bundle`] and [`write_bundle_with`].
+fn write_bundle_core<D: BundlePixels>(
+    path: &Path,
+    products: &[BundleSpec<'_>],
+    mut data: impl FnMut(usize) -> Result<D>,
+    file_attrs: &[(&str, String)],
+) -> Result<()> {
     if products.is_empty() {
         return Err(Error::param(
             "bundle products",
@@ -811,23 +890,11 @@ pub fn write_bundle(
     super::atomic_write_path(path, |tmp| {
         {
             let file = create_file(tmp)?;
-            for p in products {
+            for (k, p) in products.iter().enumerate() {
                 let what = format!("cannot write dataset `/{}`", p.name);
-                let ds = match &p.data {
-                    BundleData::U16(a) => {
-                        let a = a.as_standard_layout();
-                        file.new_dataset_builder()
-                            .with_data(a.view())
-                            .create(p.name)
-                    }
-                    BundleData::F32(a) => {
-                        let a = a.as_standard_layout();
-                        file.new_dataset_builder()
-                            .with_data(a.view())
-                            .create(p.name)
-                    }
-                }
-                .ctx(tmp, what)?;
+                let pixels = data(k)?;
+                let ds = pixels.create(&file, p.name).ctx(tmp, what)?;
+                drop(pixels);
                 for (name, value) in &p.attrs {
                     put_string(tmp, &ds, name, value)?;
                 }

@@ -34,6 +34,7 @@ pub mod input;
 pub mod mapped;
 pub mod metadata;
 pub mod npy;
+pub mod npy_stack;
 pub mod output;
 pub mod raster;
 pub(crate) mod spill;
@@ -264,32 +265,85 @@ pub fn atomic_write<F>(path: &Path, write: F) -> Result<()>
 where
     F: FnOnce(&mut BufWriter<File>) -> Result<()>,
 {
-    output::check_output_target(path)?;
-    let tmp = temp_path(path);
-    output::register_cleanup(&tmp);
-    // Errors name the target the user gave, not the temporary file beside it.
-    let result = (|| {
+    let mut file = AtomicFile::create(path)?;
+    write(file.writer())?;
+    file.commit()
+}
+
+/// A file written atomically over several calls (a stack that grows frame by frame): the
+/// [`atomic_write`] rules, with the writer kept between calls. [`AtomicFile::commit`]
+/// syncs it and renames it into place; dropped uncommitted (an error on the way), the
+/// temporary file is removed and `path` is untouched.
+#[derive(Debug)]
+pub struct AtomicFile {
+    path: PathBuf,
+    tmp: PathBuf,
+    writer: Option<BufWriter<File>>,
+}
+
+impl AtomicFile {
+    /// Creates the temporary file for `path` (absent or a regular file).
+    pub fn create(path: &Path) -> Result<Self> {
+        output::check_output_target(path)?;
+        let tmp = temp_path(path);
+        output::register_cleanup(&tmp);
+        let mut this = AtomicFile {
+            path: path.to_path_buf(),
+            tmp,
+            writer: None,
+        };
         // Readable too: a writer may fix up what it wrote (e.g. the EXR header order).
+        // Errors name the target the user gave, not the temporary file beside it.
         let file = File::options()
             .read(true)
             .write(true)
             .create(true)
             .truncate(true)
-            .open(&tmp)
+            .open(&this.tmp)
             .map_err(|e| Error::io(path, e))?;
-        let mut w = BufWriter::new(file);
-        write(&mut w)?;
+        this.writer = Some(BufWriter::new(file));
+        Ok(this)
+    }
+
+    /// The target path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The writer of the temporary file.
+    pub fn writer(&mut self) -> &mut BufWriter<File> {
+        self.writer
+            .as_mut()
+            .expect("an AtomicFile has its writer until commit consumes it")
+    }
+
+    /// Flushes, syncs and renames the file into place.
+    pub fn commit(mut self) -> Result<()> {
+        let path = self.path.clone();
+        let w = self
+            .writer
+            .take()
+            .expect("an AtomicFile has its writer until commit consumes it");
         let file = w
             .into_inner()
-            .map_err(|e| Error::io(path, e.into_error()))?;
-        file.sync_all().map_err(|e| Error::io(path, e))?;
-        std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+            .map_err(|e| Error::io(&path, e.into_error()))?;
+        file.sync_all().map_err(|e| Error::io(&path, e))?;
+        std::fs::rename(&self.tmp, &path).map_err(|e| Error::io(&path, e))?;
+        output::unregister_cleanup(&self.tmp);
+        // Renamed: nothing for Drop to remove.
+        self.tmp = PathBuf::new();
+        Ok(())
     }
-    output::unregister_cleanup(&tmp);
-    result
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        if !self.tmp.as_os_str().is_empty() {
+            drop(self.writer.take());
+            let _ = std::fs::remove_file(&self.tmp);
+            output::unregister_cleanup(&self.tmp);
+        }
+    }
 }
 
 /// Like [`atomic_write`] for libraries that want a path rather than a writer: `write` is

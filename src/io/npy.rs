@@ -771,7 +771,7 @@ fn npy_header_f32(shape: &[usize]) -> Vec<u8> {
 }
 
 /// The NPY v1.0 preamble + header for a C-order array of type `descr` (e.g. `<u2`).
-fn npy_header(descr: &str, shape: &[usize]) -> Vec<u8> {
+pub(super) fn npy_header(descr: &str, shape: &[usize]) -> Vec<u8> {
     let dims: Vec<String> = shape.iter().map(|n| n.to_string()).collect();
     let shape_txt = if dims.len() == 1 {
         format!("({},)", dims[0])
@@ -889,50 +889,5 @@ pub fn read_stack(path: &Path) -> Result<ndarray::Array3<f32>> {
         .map_err(|e| Error::format(path, e.to_string()))
 }
 
-/// Writes frames of equal shape as one `<f4` `[frame, row, col]` `.npy` stack, atomically
-/// (per-frame truth maps of a sequence, e.g. the charge held in persistence traps).
-pub fn write_f32_stack(path: &Path, frames: &[ndarray::ArrayView2<f32>]) -> Result<()> {
-    write_stack(path, "<f4", frames, |v, buf| {
-        buf.extend_from_slice(&v.to_le_bytes())
-    })
-}
-
-/// Writes frames of equal shape as one `<u2` `[frame, row, col]` `.npy` stack, atomically
-/// (a sequence's DN frames in one file for NumPy: `np.load` gives the stack).
-pub fn write_u16_stack(path: &Path, frames: &[ndarray::ArrayView2<u16>]) -> Result<()> {
-    write_stack(path, "<u2", frames, |v, buf| {
-        buf.extend_from_slice(&v.to_le_bytes())
-    })
-}
-
-/// One `[frame, row, col]` stack of dtype `descr`, each value appended by `put`.
-fn write_stack<T: Copy>(
-    path: &Path,
-    descr: &str,
-    frames: &[ndarray::ArrayView2<T>],
-    put: impl Fn(T, &mut Vec<u8>),
-) -> Result<()> {
-    let (r, c) = frames.first().map_or((0, 0), |f| f.dim());
-    if let Some(f) = frames.iter().find(|f| f.dim() != (r, c)) {
-        return Err(Error::format(
-            path,
-            format!(
-                "frames of different shapes ({r}x{c} and {}x{})",
-                f.nrows(),
-                f.ncols()
-            ),
-        ));
-    }
-    atomic_write(path, |w| {
-        write_all(w, &npy_header(descr, &[frames.len(), r, c]), path)?;
-        let mut buf = Vec::with_capacity(r * c * std::mem::size_of::<T>());
-        for f in frames {
-            buf.clear();
-            for v in f.iter() {
-                put(*v, &mut buf);
-            }
-            write_all(w, &buf, path)?;
-        }
-        Ok(())
-    })
-}
+// The `[frame, row, col]` stack writers live in `npy_stack` (this file holds the reader).
+pub use super::npy_stack::{write_f32_stack, write_u16_stack, StackWriter};

@@ -579,6 +579,82 @@ impl Drop for ProductSet {
     }
 }
 
+/// Bytes free to an unprivileged writer on the file system holding `dir` (`statvfs`:
+/// available blocks × fragment size); `None` where it cannot be asked (not Unix, or the
+/// call fails).
+pub fn free_bytes(dir: &Path) -> Option<u64> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        let c = std::ffi::CString::new(dir.as_os_str().as_bytes()).ok()?;
+        let mut st = std::mem::MaybeUninit::<libc::statvfs>::uninit();
+        // SAFETY: `c` is a NUL-terminated path and `st` a buffer of the right type, which
+        // statvfs fills on success (return 0); it is read only then.
+        if unsafe { libc::statvfs(c.as_ptr(), st.as_mut_ptr()) } != 0 {
+            return None;
+        }
+        // SAFETY: statvfs returned 0, so it initialised `st`.
+        let st = unsafe { st.assume_init() };
+        // The field types are c_ulong / fsblkcnt_t: u64 here, narrower on other targets.
+        #[allow(clippy::unnecessary_cast)]
+        (st.f_bavail as u64).checked_mul(st.f_frsize as u64)
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = dir;
+        None
+    }
+}
+
+/// Checks that a sequence of `frames` frames of `pixels` pixels fits on the file system of
+/// `dir` before a run streams it there: its products take at least `bytes_per_pixel` bytes
+/// per pixel and frame (the uncompressed rasters every frame writes), which must not
+/// overflow and must be below the free space (when it can be asked, [`free_bytes`]).
+///
+/// A single frame is not checked: a disk too full for it fails at the write with the
+/// system's "no space left".
+///
+/// Errors: an overflowing size, or (two frames or more) more than the free space; both
+/// name the frame count.
+pub fn check_room_for_frames(
+    dir: &Path,
+    frames: usize,
+    pixels: usize,
+    bytes_per_pixel: u64,
+) -> Result<()> {
+    let need = (frames as u64)
+        .checked_mul(pixels as u64)
+        .and_then(|v| v.checked_mul(bytes_per_pixel))
+        .ok_or_else(|| {
+            Error::param(
+                "frames",
+                frames,
+                format!(
+                    "a count whose products fit in a file system: {frames} frames of {pixels} pixels overflows a 64-bit byte count"
+                ),
+            )
+        })?;
+    // One frame is the ordinary case: a disk too full for it fails at the write, with the
+    // system's own "no space left" error. The check is for sequences long enough to fill it.
+    if frames < 2 {
+        return Ok(());
+    }
+    if let Some(free) = free_bytes(dir) {
+        if need > free {
+            return Err(Error::param(
+                "frames",
+                frames,
+                format!(
+                    "a count whose products fit on the disk: {frames} frames of {pixels} pixels take at least {}, and the output's file system has {} free",
+                    crate::error::human_bytes(need),
+                    crate::error::human_bytes(free)
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Checks that every value of a product is finite before it is written: `values` are
 /// the values as they will be stored (e.g. after conversion to f32, where 3.5e38 becomes
 /// +inf). Errors name `path` (the final product), the number of non-finite values, the

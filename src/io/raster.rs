@@ -446,21 +446,31 @@ pub fn write_apng_gray8(path: &Path, frames: &[Array2<u8>], delay_ms: u16) -> Re
     let Some(first) = frames.first() else {
         return Err(Error::param("frames", "none", "at least one frame"));
     };
-    let (rows, cols) = first.dim();
-    let (w, h) = dims(path, rows, cols)?;
-    if let Some((i, f)) = frames
-        .iter()
-        .enumerate()
-        .find(|(_, f)| f.dim() != (rows, cols))
-    {
-        return Err(Error::param(
-            format!("frames[{i}] shape"),
-            format!("{:?}", f.dim()),
-            format!("({rows}, {cols}) like frame 0"),
-        ));
+    write_apng_gray8_with(path, frames.len(), first.dim(), delay_ms, |i| {
+        Ok(frames[i].clone())
+    })
+}
+
+/// [`write_apng_gray8`] of `count` frames of `shape` (rows, cols) made one at a time by
+/// `frame(i)`, `i` = 0, 1, … in order: only one frame is held at a time (the animated
+/// preview of a long sequence, built from frames on disk). The bytes are those of
+/// [`write_apng_gray8`] of the same frames.
+///
+/// Errors: no frame, a frame of another shape, `frame`'s errors, I/O.
+pub fn write_apng_gray8_with(
+    path: &Path,
+    count: usize,
+    shape: (usize, usize),
+    delay_ms: u16,
+    mut frame: impl FnMut(usize) -> Result<Array2<u8>>,
+) -> Result<()> {
+    if count == 0 {
+        return Err(Error::param("frames", "none", "at least one frame"));
     }
-    let n = u32::try_from(frames.len())
-        .map_err(|_| Error::param("frames", frames.len(), "at most 2^32 - 1 frames"))?;
+    let (rows, cols) = shape;
+    let (w, h) = dims(path, rows, cols)?;
+    let n = u32::try_from(count)
+        .map_err(|_| Error::param("frames", count, "at most 2^32 - 1 frames"))?;
     atomic_write(path, |out| {
         let mut enc = png::Encoder::new(&mut *out, w, h);
         enc.set_color(png::ColorType::Grayscale);
@@ -470,7 +480,15 @@ pub fn write_apng_gray8(path: &Path, frames: &[Array2<u8>], delay_ms: u16) -> Re
         enc.set_frame_delay(delay_ms, 1000)
             .map_err(|e| png_err(path, e))?;
         let mut writer = enc.write_header().map_err(|e| png_err(path, e))?;
-        for f in frames {
+        for i in 0..count {
+            let f = frame(i)?;
+            if f.dim() != (rows, cols) {
+                return Err(Error::param(
+                    format!("frames[{i}] shape"),
+                    format!("{:?}", f.dim()),
+                    format!("({rows}, {cols}) like frame 0"),
+                ));
+            }
             let bytes: Vec<u8> = f.iter().copied().collect();
             writer
                 .write_image_data(&bytes)

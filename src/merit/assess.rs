@@ -213,6 +213,18 @@ pub struct TaskRange {
     pub range_p80_m: Option<f64>,
 }
 
+/// The CTF_sys tables at one range of a path-dependent system MTF.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RangeCtf {
+    /// Range, m.
+    pub range_m: f64,
+    /// Horizontal CTF_sys at the frequencies of [`Analytic::ctf_sys_h`] (null where the MTF
+    /// is ≤ 0).
+    pub ctf_sys_h: Vec<f64>,
+    /// Vertical CTF_sys, likewise.
+    pub ctf_sys_v: Vec<f64>,
+}
+
 /// The analytic figures.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Analytic {
@@ -263,6 +275,12 @@ pub struct Analytic {
     pub contrast: Vec<f64>,
     /// TTP value V at each range.
     pub ttp_v: Vec<f64>,
+    /// When the sensor has turbulence or aerosol: CTF_sys at each range, with those
+    /// components evaluated over that range (V at each range integrates these, on the
+    /// frequencies of [`Analytic::ctf_sys_h`]); `None` otherwise (the tables above hold
+    /// at every range).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ctf_sys_at_range: Option<Vec<RangeCtf>>,
     /// Task probabilities and ranges.
     pub tasks: Vec<TaskRange>,
 }
@@ -318,7 +336,15 @@ pub fn frame_rate_hz(sensor: &Sensor) -> f64 {
 
 /// Signal electrons of the reference scene (see [`Analytic::signal_e`]) times `scale`
 /// (a reflectance for the reflective scene).
+///
+/// A colour-filter-array sensor's pixel sees one dye: the signal is the mosaic's mean over
+/// its channels (a Bayer quad: ¼ red, ½ green, ¼ blue). Shot-noise variance is linear in
+/// the signal, so the mean pixel's temporal noise is the mosaic's mean noise power.
 fn scene_electrons(sensor: &Sensor, thermal: bool, t_k: f64, reflectance: f64) -> Result<f64> {
+    if let [r, g, b] = sensor.cfa_channels() {
+        let e = |s: &Sensor| scene_electrons(s, thermal, t_k, reflectance);
+        return Ok(0.25 * e(r)? + 0.5 * e(g)? + 0.25 * e(b)?);
+    }
     if thermal {
         sensor.camera().electrons_blackbody(t_k, sensor.response())
     } else {
@@ -487,16 +513,46 @@ pub fn analytic(sensor: &Sensor, opts: &AssessOptions) -> Result<Analytic> {
         .iter()
         .map(|&r| target.contrast_at(r))
         .collect();
-    let ttp_v: Vec<f64> = opts
-        .ranges_m
-        .iter()
-        .map(|&r| target.value_at(&ctf_h, &ctf_v, r))
-        .collect();
+    // The CTF_sys tables at range r: the sensor's own when no component depends on the
+    // path, else with turbulence and aerosol evaluated over r.
+    let over_range = sensor.otf().depends_on_range();
+    let tables_at = |r: f64| -> Result<(Vec<CtfSample>, Vec<CtfSample>)> {
+        let t = transfer.over_range(r)?;
+        Ok((
+            ttp::ctf_sys_table(|f| t.eval(f, 0.0), &ts, &display, CTF_TABLE_POINTS)?,
+            ttp::ctf_sys_table(|f| t.eval(0.0, f), &ts, &display, CTF_TABLE_POINTS)?,
+        ))
+    };
+    let value_at = |r: f64| -> f64 {
+        if !over_range {
+            return target.value_at(&ctf_h, &ctf_v, r);
+        }
+        tables_at(r).map_or(f64::NAN, |(h, v)| target.value_at(&h, &v, r))
+    };
+    // V on the range grid, and for a path-dependent MTF each range's tables (computed once
+    // for both).
+    let (ttp_v, ctf_sys_at_range) = if over_range {
+        let mut v = Vec::with_capacity(opts.ranges_m.len());
+        let mut rows = Vec::with_capacity(opts.ranges_m.len());
+        for &r in &opts.ranges_m {
+            let (h, vt) = tables_at(r)?;
+            v.push(target.value_at(&h, &vt, r));
+            rows.push(RangeCtf {
+                range_m: r,
+                ctf_sys_h: h.iter().map(|c| c.ctf_sys).collect(),
+                ctf_sys_v: vt.iter().map(|c| c.ctf_sys).collect(),
+            });
+        }
+        (v, Some(rows))
+    } else {
+        let v = opts.ranges_m.iter().map(|&r| value_at(r)).collect();
+        (v, None)
+    };
     let (rmin, rmax) = (opts.ranges_m[0], *opts.ranges_m.last().expect("≥ 2 ranges"));
     let tasks = ttp::DEFAULT_TASKS
         .iter()
         .map(|&(name, v50)| {
-            let at = |r: f64| target.value_at(&ctf_h, &ctf_v, r);
+            let at = &value_at;
             TaskRange {
                 task: name.to_string(),
                 v50,
@@ -531,6 +587,7 @@ pub fn analytic(sensor: &Sensor, opts: &AssessOptions) -> Result<Analytic> {
         ctf_sys_v: ctf_v,
         contrast,
         ttp_v,
+        ctf_sys_at_range,
         tasks,
     })
 }

@@ -7,4 +7,6 @@ pub mod assess;
 pub mod giqe;
 pub mod mrtd;
 pub mod noise3d;
+pub mod plots;
+pub mod run_report;
 pub mod ttp;

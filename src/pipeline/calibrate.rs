@@ -101,17 +101,30 @@ pub fn missing_temperature(sensor: &Sensor, out: &super::RunOutput) -> Option<St
     if !sensor.is_thermal() || out.frames.iter().all(|f| f.temperature.is_some()) {
         return None;
     }
-    Some(
-        out.warnings
-            .iter()
-            .find_map(|w| w.strip_prefix(FAILURE_PREFIX))
-            .unwrap_or("the radiometric calibration was not run")
-            .to_string(),
-    )
+    Some(failure_reason(&out.warnings))
+}
+
+/// [`missing_temperature`] of a run summary (e.g. of a [`super::StreamedRun`]): a run's
+/// frames are calibrated all or none, so frame 0 tells.
+pub fn missing_temperature_of(sensor: &Sensor, run: &super::RunSummary) -> Option<String> {
+    if !sensor.is_thermal() || run.first.temperature.is_some() {
+        return None;
+    }
+    Some(failure_reason(run.warnings))
+}
+
+/// The calibration failure's reason among `warnings`.
+fn failure_reason(warnings: &[String]) -> String {
+    warnings
+        .iter()
+        .find_map(|w| w.strip_prefix(FAILURE_PREFIX))
+        .unwrap_or("the radiometric calibration was not run")
+        .to_string()
 }
 
 /// Calibrates `exposure`'s instance with `options` (when given and the sensor is thermal)
-/// and fills `radiance` and `temperature` of every frame.
+/// and fills `radiance` and `temperature` of every frame: [`FrameCalibration`] made once,
+/// applied to each frame, finished.
 ///
 /// A calibration that cannot be made (no usable range, clipped levels, too few ADC bits,
 /// no usable pixels) is [`CalibrationOutcome::Failed`] with the reason: the DN products
@@ -124,80 +137,128 @@ pub fn calibrate_frames(
     options: Option<&CalibrationOptions>,
     frames: &mut [FrameProducts],
 ) -> Result<CalibrationOutcome> {
-    let Some(opts) = options.filter(|_| sensor.is_thermal()) else {
-        return Ok(CalibrationOutcome::Skipped);
-    };
-    let instance = exposure.instance();
-    let cal = match Calibration::new(sensor, exposure.model(), instance, opts) {
-        Ok(c) => c,
-        Err(e) => return Ok(CalibrationOutcome::Failed(failure_warning(sensor, &e))),
-    };
-    let temps = cal.temperatures_k();
-    let lo = temps.iter().copied().fold(f64::INFINITY, f64::min);
-    let hi = temps.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    let t_check = 0.5 * (lo + hi) + CHECK_OFFSET_K;
-    // The residual non-uniformity check, the frames' conversion and the measured NETD are
-    // independent (each deterministic): they run side by side on the worker pool.
-    let (rnu, (converted, netd_measured)) = rayon::join(
-        || cal.residual_nonuniformity(instance, t_check),
-        || {
-            rayon::join(
-                || {
-                    frames
-                        .iter()
-                        .map(|f| {
-                            let corrected = cal.correct(f.dn.view())?;
-                            Ok(cal.to_temperature_f32(corrected.view()))
-                        })
-                        .collect::<Result<Vec<_>>>()
-                },
-                || {
-                    netd_sample(exposure.model().rows(), exposure.model().cols())
-                        .and_then(|sample| {
-                            measured_netd_sampled(
-                                sensor,
-                                instance,
-                                NETD_AT_K,
-                                NETD_DELTA_K,
-                                &sample,
-                                Some(cal.bad_pixels()),
-                            )
-                        })
-                        .ok()
-                },
-            )
-        },
-    );
-    let (raw, corrected) = match rnu {
-        Ok(r) => r,
-        Err(e) => return Ok(CalibrationOutcome::Failed(failure_warning(sensor, &e))),
-    };
-    let mut nan_total = 0;
-    for (f, (t, l, nan)) in frames.iter_mut().zip(converted?) {
-        nan_total += nan;
-        f.temperature = Some(t);
-        f.radiance = Some(l);
+    let mut calibration = FrameCalibration::new(sensor, exposure, options);
+    for f in frames.iter_mut() {
+        calibration.apply(f)?;
     }
-    let temporal_floor = exposure
-        .model()
-        .temporal_noise_dn(cal.blackbody_electrons(t_check)?)
-        / (opts.frames_per_level.max(1) as f64).sqrt()
-        / cal.ideal_dn(t_check);
-    Ok(CalibrationOutcome::Done(Box::new(CalibrationReport {
-        nuc_degree: opts.degree,
-        temperatures_k: temps.to_vec(),
-        frames_per_level: opts.frames_per_level,
-        bad_pixels: cal.bad_pixels().count(),
-        residual_nonuniformity: ResidualNonuniformity {
-            at_k: t_check,
-            raw,
-            corrected,
-            temporal_floor,
-            measured: "spatial σ/μ of a blackbody flat field averaged over frames_per_level frames, before and after NUC and bad-pixel replacement; temporal_floor = σ_t/(μ√M) is the temporal noise left in that average".to_string(),
-        },
-        netd_analytic_k_at_300k: cal.netd_analytic_k(NETD_AT_K).ok(),
-        netd_measured_k_at_300k: netd_measured,
-        uninvertible_pixels: nan_total,
-        radiance_definition: RADIANCE_DEFINITION.to_string(),
-    })))
+    calibration.finish(sensor, exposure)
+}
+
+/// The radiometric calibration of a run as its frames stream past: made once, as soon as
+/// the exposure stage exists (the first frame's mean image fixed the gain; the sensor
+/// instance does not change from frame to frame, so a calibration made then is the one
+/// made after the last frame), applied to each frame as it is exposed (so no frame has to
+/// wait for the whole sequence), and finished with the report's checks (residual
+/// non-uniformity, measured NETD) once every frame passed.
+#[derive(Debug)]
+pub enum FrameCalibration {
+    /// Not asked for, or the sensor is not thermal.
+    Skipped,
+    /// The calibration could not be made; the warning says why.
+    Failed(String),
+    /// Calibrated: frames get radiance and temperature.
+    Ready {
+        /// The calibration of the run's instance.
+        cal: Box<Calibration>,
+        /// Its options.
+        options: CalibrationOptions,
+        /// Pixels that could not be inverted, summed over the frames so far.
+        uninvertible: usize,
+    },
+}
+
+impl FrameCalibration {
+    /// Calibrates `exposure`'s instance with `options` when given and the sensor is thermal.
+    pub fn new(sensor: &Sensor, exposure: &Exposure, options: Option<&CalibrationOptions>) -> Self {
+        let Some(opts) = options.filter(|_| sensor.is_thermal()) else {
+            return FrameCalibration::Skipped;
+        };
+        match Calibration::new(sensor, exposure.model(), exposure.instance(), opts) {
+            Ok(cal) => FrameCalibration::Ready {
+                cal: Box::new(cal),
+                options: opts.clone(),
+                uninvertible: 0,
+            },
+            Err(e) => FrameCalibration::Failed(failure_warning(sensor, &e)),
+        }
+    }
+
+    /// Fills `frame`'s radiance and temperature from its DN (nothing when not calibrated).
+    ///
+    /// Errors: a frame of another shape than the detector.
+    pub fn apply(&mut self, frame: &mut FrameProducts) -> Result<()> {
+        if let FrameCalibration::Ready {
+            cal, uninvertible, ..
+        } = self
+        {
+            let corrected = cal.correct(frame.dn.view())?;
+            let (t, l, nan) = cal.to_temperature_f32(corrected.view());
+            *uninvertible += nan;
+            frame.temperature = Some(t);
+            frame.radiance = Some(l);
+        }
+        Ok(())
+    }
+
+    /// The outcome once every frame was applied: the residual non-uniformity check and the
+    /// measured NETD (independent and each deterministic: side by side on the worker pool).
+    pub fn finish(self, sensor: &Sensor, exposure: &Exposure) -> Result<CalibrationOutcome> {
+        let (cal, opts, nan_total) = match self {
+            FrameCalibration::Skipped => return Ok(CalibrationOutcome::Skipped),
+            FrameCalibration::Failed(w) => return Ok(CalibrationOutcome::Failed(w)),
+            FrameCalibration::Ready {
+                cal,
+                options,
+                uninvertible,
+            } => (cal, options, uninvertible),
+        };
+        let instance = exposure.instance();
+        let temps = cal.temperatures_k();
+        let lo = temps.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = temps.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let t_check = 0.5 * (lo + hi) + CHECK_OFFSET_K;
+        let (rnu, netd_measured) = rayon::join(
+            || cal.residual_nonuniformity(instance, t_check),
+            || {
+                netd_sample(exposure.model().rows(), exposure.model().cols())
+                    .and_then(|sample| {
+                        measured_netd_sampled(
+                            sensor,
+                            instance,
+                            NETD_AT_K,
+                            NETD_DELTA_K,
+                            &sample,
+                            Some(cal.bad_pixels()),
+                        )
+                    })
+                    .ok()
+            },
+        );
+        let (raw, corrected) = match rnu {
+            Ok(r) => r,
+            Err(e) => return Ok(CalibrationOutcome::Failed(failure_warning(sensor, &e))),
+        };
+        let temporal_floor = exposure
+            .model()
+            .temporal_noise_dn(cal.blackbody_electrons(t_check)?)
+            / (opts.frames_per_level.max(1) as f64).sqrt()
+            / cal.ideal_dn(t_check);
+        Ok(CalibrationOutcome::Done(Box::new(CalibrationReport {
+            nuc_degree: opts.degree,
+            temperatures_k: temps.to_vec(),
+            frames_per_level: opts.frames_per_level,
+            bad_pixels: cal.bad_pixels().count(),
+            residual_nonuniformity: ResidualNonuniformity {
+                at_k: t_check,
+                raw,
+                corrected,
+                temporal_floor,
+                measured: "spatial σ/μ of a blackbody flat field averaged over frames_per_level frames, before and after NUC and bad-pixel replacement; temporal_floor = σ_t/(μ√M) is the temporal noise left in that average".to_string(),
+            },
+            netd_analytic_k_at_300k: cal.netd_analytic_k(NETD_AT_K).ok(),
+            netd_measured_k_at_300k: netd_measured,
+            uninvertible_pixels: nan_total,
+            radiance_definition: RADIANCE_DEFINITION.to_string(),
+        })))
+    }
 }

@@ -15,9 +15,15 @@
 //! needs ([`ImagingStage::frame_bytes_in_flight`] per extra frame); a reader that cannot
 //! be reopened gives `K = 1`. The report's `execution` section says which limit applied.
 //!
+//! **Frames handed on.** Each exposed frame is calibrated (thermal sensors) and handed to
+//! the run's [`FrameConsumer`] at once, in frame order: the loop keeps only a copy of
+//! frame 0 (for the report), so what a run holds does not grow with the frame count unless
+//! the consumer keeps the frames (the collecting consumer of [`super::run`] does).
+//!
 //! **Errors.** The first failing frame (lowest index) decides the error, as in a
 //! one-at-a-time run: no new frame is started once a frame failed, the frames in flight
-//! finish, and the run returns the error without products.
+//! finish, and the run returns the error without products. An error of the consumer
+//! (e.g. a full disk while writing frame 50) is the error of that frame.
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -33,14 +39,20 @@ use crate::report::ExecutionReport;
 use crate::scene::CubeMeta;
 use crate::sensor::Sensor;
 
+use super::calibrate::FrameCalibration;
 use super::expose::Exposure;
 use super::image::{add_stats, ImagingStage};
-use super::{colour, finite_mean, FrameProducts, RunOptions};
+use super::{colour, finite_mean, FrameConsumer, FrameProducts, RunOptions};
 
 /// What the frame loop hands back to the run.
 pub(super) struct FramesDone {
-    /// The products of every frame, in frame order (before calibration).
-    pub frames: Vec<FrameProducts>,
+    /// Frame 0's products (calibrated), kept for the report; every frame went to the
+    /// consumer.
+    pub first: FrameProducts,
+    /// The calibration applied to the frames, to be finished with the report's checks.
+    pub calibration: FrameCalibration,
+    /// Seconds spent calibrating (making the calibration and applying it to the frames).
+    pub calibration_s: f64,
     /// The exposure stage (gain fixed, sensor instance).
     pub exposure: Exposure,
     /// Imaging timings summed over the frames, padded shape, precision.
@@ -115,6 +127,7 @@ pub(super) fn image_and_expose(
     job: &FrameJob,
     reader: &mut dyn CubeReader,
     progress: &mut dyn FnMut(usize, usize),
+    consumer: &mut dyn FrameConsumer,
 ) -> Result<FramesDone> {
     let threads = rayon::current_num_threads();
     let to_image = if job.input_frames == 1 {
@@ -165,19 +178,22 @@ pub(super) fn image_and_expose(
         job.stage
             .keep_chunk_profiles(usize::try_from(left.min(cap)).unwrap_or(0));
     }
-    let mut sink = Sink::new(job, to_image);
+    consumer.start(job.n_frames)?;
+    let mut sink = Sink::new(job, to_image, consumer);
     let mut done = Done::default();
     if k == 1 {
         sequential(job, reader, &mut sink, &mut done, progress)?;
     } else {
         in_parallel(job, readers, &mut sink, &mut done, progress)?;
     }
-    let (frames, exposure, detector_s) = sink.finish()?;
+    let kept = sink.finish()?;
     Ok(FramesDone {
-        frames,
-        exposure,
+        first: kept.first,
+        calibration: kept.calibration,
+        calibration_s: kept.calibration_s,
+        exposure: kept.exposure,
+        detector_s: kept.detector_s,
         stats: done.stats,
-        detector_s,
         execution: ExecutionReport {
             threads,
             frames_in_flight: k,
@@ -363,7 +379,8 @@ fn receive(rx: &Receiver<Msg>) -> Option<Msg> {
 }
 
 /// The exposure side of the loop: takes mean images in frame order, exposes them (a static
-/// input's single image once per requested frame) and keeps the products.
+/// input's single image once per requested frame), calibrates each frame and hands it to
+/// the consumer, keeping only frame 0's products.
 struct Sink<'a> {
     job: &'a FrameJob<'a>,
     /// Frames to image (1 for a static input).
@@ -371,19 +388,39 @@ struct Sink<'a> {
     /// The next frame to expose.
     next: usize,
     exposure: Option<Exposure>,
-    frames: Vec<FrameProducts>,
+    /// Made with the exposure stage (once the first frame fixed the gain).
+    calibration: Option<FrameCalibration>,
+    consumer: &'a mut dyn FrameConsumer,
+    /// Frames handed to the consumer.
+    handed: usize,
+    /// A copy of frame 0's products.
+    first: Option<FrameProducts>,
     detector_s: f64,
+    calibration_s: f64,
+}
+
+/// What the exposure side keeps once every frame was handed on.
+struct Kept {
+    first: FrameProducts,
+    exposure: Exposure,
+    calibration: FrameCalibration,
+    detector_s: f64,
+    calibration_s: f64,
 }
 
 impl<'a> Sink<'a> {
-    fn new(job: &'a FrameJob<'a>, to_image: usize) -> Self {
+    fn new(job: &'a FrameJob<'a>, to_image: usize, consumer: &'a mut dyn FrameConsumer) -> Self {
         Sink {
             job,
             to_image,
             next: 0,
             exposure: None,
-            frames: Vec::with_capacity(job.n_frames),
+            calibration: None,
+            consumer,
+            handed: 0,
+            first: None,
             detector_s: 0.0,
+            calibration_s: 0.0,
         }
     }
 
@@ -404,7 +441,8 @@ impl<'a> Sink<'a> {
         Ok(())
     }
 
-    /// Exposes frame `g` (the next frame to keep) of mean image `e`.
+    /// Exposes frame `g` (the next frame to hand on) of mean image `e`, calibrates it and
+    /// hands it to the consumer.
     fn expose(&mut self, g: usize, e: &Array2<f64>) -> Result<()> {
         let job = self.job;
         let e = finite_mean(e, g, &job.options.input_name)?;
@@ -429,7 +467,18 @@ impl<'a> Sink<'a> {
         let dn = exposure.expose(e, job.options.first_frame + g as u64)?;
         self.detector_s += t0.elapsed().as_secs_f64();
         let rgb = colour::colour_image(job.sensor, exposure.model(), &dn);
-        self.frames.push(FrameProducts::raw(e, dn, rgb));
+        let mut frame = FrameProducts::raw(e, dn, rgb);
+        let t0 = Instant::now();
+        let calibration = self.calibration.get_or_insert_with(|| {
+            FrameCalibration::new(job.sensor, exposure, job.options.calibration.as_ref())
+        });
+        calibration.apply(&mut frame)?;
+        self.calibration_s += t0.elapsed().as_secs_f64();
+        if g == 0 {
+            self.first = Some(frame.clone());
+        }
+        self.consumer.frame(g, frame)?;
+        self.handed += 1;
         Ok(())
     }
 
@@ -455,19 +504,26 @@ impl<'a> Sink<'a> {
         Ok(())
     }
 
-    /// The products, the exposure stage and the detector seconds, once every frame was
-    /// exposed.
-    fn finish(self) -> Result<(Vec<FrameProducts>, Exposure, f64)> {
-        let exposure = self
-            .exposure
-            .ok_or_else(|| Error::OutOfRange("no frame was exposed".into()))?;
-        if self.frames.len() != self.job.n_frames {
+    /// Frame 0, the exposure stage, the calibration and the seconds, once every frame was
+    /// exposed and handed on.
+    fn finish(self) -> Result<Kept> {
+        let (Some(exposure), Some(first), Some(calibration)) =
+            (self.exposure, self.first, self.calibration)
+        else {
+            return Err(Error::OutOfRange("no frame was exposed".into()));
+        };
+        if self.handed != self.job.n_frames {
             return Err(Error::OutOfRange(format!(
                 "{} of {} frames were exposed",
-                self.frames.len(),
-                self.job.n_frames
+                self.handed, self.job.n_frames
             )));
         }
-        Ok((self.frames, exposure, self.detector_s))
+        Ok(Kept {
+            first,
+            exposure,
+            calibration,
+            detector_s: self.detector_s,
+            calibration_s: self.calibration_s,
+        })
     }
 }

@@ -4,6 +4,7 @@
 //! mosaicked before the detector ([`crate::cfa::mosaic`]): the CFA stage.
 
 use ndarray::Array2;
+use num_complex::Complex64;
 
 use crate::error::Result;
 use crate::imaging::fft::FftPrecision;
@@ -223,23 +224,52 @@ impl ImagingStage {
             add_stats(&mut stats, &s);
             spectra.push(spec);
         }
-        let mut scratch = Vec::new();
-        for g in 0..frames {
+        // Frame g's mean image and the seconds it took.
+        let image = |g: usize, scratch: &mut Vec<Complex64>| -> (Result<Array2<f64>>, f64) {
             let t0 = std::time::Instant::now();
             let moved = self.motion.as_ref().map(|m| m.frame(g));
             let mut planes = Vec::with_capacity(self.imagers.len());
             for (im, spec) in self.imagers.iter().zip(&spectra) {
-                planes.push(match moved.as_ref().filter(|m| !m.is_identity()) {
-                    Some(m) => im.detector_image_moving(spec, m, &mut scratch)?,
+                let plane = match moved.as_ref().filter(|m| !m.is_identity()) {
+                    Some(m) => im.detector_image_moving(spec, m, scratch),
                     None => {
                         scratch.clear();
                         scratch.extend_from_slice(spec);
-                        im.detector_image_transposed(&mut scratch)
+                        Ok(im.detector_image_transposed(scratch))
                     }
-                });
+                };
+                match plane {
+                    Ok(p) => planes.push(p),
+                    Err(e) => return (Err(e), t0.elapsed().as_secs_f64()),
+                }
             }
-            stats.inverse_s += t0.elapsed().as_secs_f64();
-            each(g, self.mosaic(planes)?)?;
+            (self.mosaic(planes), t0.elapsed().as_secs_f64())
+        };
+        // Frame g + 1 is imaged on a thread of its own while `each` exposes frame g on
+        // this one (the imaging reads only the spectra and immutable tables, so the image
+        // is the same as one at a time; errors keep their frame order).
+        let mut scratch = Vec::new();
+        let mut next = (frames > 0).then(|| image(0, &mut scratch));
+        for g in 0..frames {
+            let Some((current, seconds)) = next.take() else {
+                break;
+            };
+            stats.inverse_s += seconds;
+            let current = current?;
+            let (exposed, imaged) = std::thread::scope(|sc| {
+                let worker = (g + 1 < frames).then(|| {
+                    let (image, scratch) = (&image, &mut scratch);
+                    sc.spawn(move || image(g + 1, scratch))
+                });
+                let exposed = each(g, current);
+                let imaged = worker.map(|w| match w.join() {
+                    Ok(r) => r,
+                    Err(panic) => std::panic::resume_unwind(panic),
+                });
+                (exposed, imaged)
+            });
+            exposed?;
+            next = imaged;
         }
         Ok(stats)
     }

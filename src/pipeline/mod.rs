@@ -6,12 +6,20 @@
 //! expose     expose::Exposure              dark, shot noise, full well, FPN, nonlinearity,
 //!                                          read noise, K, ADC, defects
 //! demosaic   colour::colour_image          CFA sensors: black level, Malvar, white balance
-//! calibrate  calibrate::calibrate_frames   thermal sensors: NUC, bad pixels, DN → radiance
+//! calibrate  calibrate::FrameCalibration   thermal sensors: NUC, bad pixels, DN → radiance
 //!                                          → apparent temperature
+//! hand on    FrameConsumer                 each frame as soon as it is exposed, in order
 //! report     report::RunReport::assemble   figures of merit, provenance, timings
-//! write      RunOutput::write              dn.tiff/png, electrons_mean, radiance, temperature,
-//!                                          rgb.png, config.toml, report.json
+//! write      ProductWriter                 dn.tiff/png, electrons_mean, radiance, temperature,
+//!                                          rgb.png, dn_stack.npy, config.toml, report.json
 //! ```
+//!
+//! **Streaming.** [`run_streaming`] hands every frame to a [`FrameConsumer`] as soon as it
+//! is exposed and calibrated, in frame order, and keeps only frame 0 (for the report), so
+//! its memory does not depend on the frame count: `eoir run` writes each frame into the
+//! staging product set as it arrives ([`ProductWriter`]). [`run`] is the same loop with a
+//! consumer that collects the frames in a `Vec` (Python, tests): its memory grows with
+//! the frame count, as it returns them all.
 //!
 //! Every stage takes the resolved [`Sensor`]: nothing here reads a sensor file or
 //! re-validates.
@@ -41,6 +49,8 @@ use crate::sensor::Sensor;
 use focal_plane::FocalPlaneTruth;
 use image::ImagingStage;
 use motion::{SequenceMotion, TruthRow};
+
+pub use output::ProductWriter;
 
 /// Options of one run.
 #[derive(Debug, Clone, PartialEq)]
@@ -135,6 +145,135 @@ pub struct RunOutput {
     /// The focal plane's truth (RTS states, trapped charge, drift per frame); `None`
     /// without a focal-plane memory (docs/focal-plane.md).
     pub focal_plane: Option<FocalPlaneTruth>,
+    /// Sections a caller adds to `report.html` after the run (e.g. the figures of merit,
+    /// `eoir run --assess`); empty from [`run`].
+    pub extra_sections: Vec<report_html::ExtraSection>,
+}
+
+/// A run whose frames were handed to a [`FrameConsumer`] as they were exposed
+/// ([`run_streaming`]): everything of a [`RunOutput`] but the frames, of which it keeps
+/// frame 0 (the report's pictures and statistics are of frame 0).
+#[derive(Debug, Clone)]
+pub struct StreamedRun {
+    /// Frames the run exposed and handed on.
+    pub frame_count: usize,
+    /// Frame 0's products.
+    pub first: FrameProducts,
+    /// The sensor configuration as resolved (written as `config.toml`).
+    pub sensor: Sensor,
+    /// Figures of merit, input summary and timings (written as `report.json`).
+    pub report: RunReport,
+    /// Warnings collected on the way.
+    pub warnings: Vec<String>,
+    /// A moving camera's truth (`los.csv`), as in [`RunOutput::line_of_sight`].
+    pub line_of_sight: Option<Vec<TruthRow>>,
+    /// The focal plane's truth, as in [`RunOutput::focal_plane`] (held for every frame:
+    /// RTS states, trapped charge and drift images per frame).
+    pub focal_plane: Option<FocalPlaneTruth>,
+    /// Sections a caller adds to `report.html`, as in [`RunOutput::extra_sections`].
+    pub extra_sections: Vec<report_html::ExtraSection>,
+}
+
+/// What the products written after the frames need of a run, borrowed from a
+/// [`RunOutput`] ([`RunOutput::summary`]) or a [`StreamedRun`] ([`StreamedRun::summary`]):
+/// the frame count, frame 0 and the run's report and truth.
+#[derive(Debug, Clone, Copy)]
+pub struct RunSummary<'a> {
+    /// Frames of the run.
+    pub frame_count: usize,
+    /// Frame 0's products.
+    pub first: &'a FrameProducts,
+    /// The sensor as resolved.
+    pub sensor: &'a Sensor,
+    /// The run's report.
+    pub report: &'a RunReport,
+    /// Warnings collected on the way.
+    pub warnings: &'a [String],
+    /// A moving camera's truth.
+    pub line_of_sight: Option<&'a [TruthRow]>,
+    /// The focal plane's truth.
+    pub focal_plane: Option<&'a FocalPlaneTruth>,
+    /// Sections a caller added to `report.html`.
+    pub extra_sections: &'a [report_html::ExtraSection],
+}
+
+impl StreamedRun {
+    /// The summary the products after the frames are written from.
+    pub fn summary(&self) -> RunSummary<'_> {
+        RunSummary {
+            frame_count: self.frame_count,
+            first: &self.first,
+            sensor: &self.sensor,
+            report: &self.report,
+            warnings: &self.warnings,
+            line_of_sight: self.line_of_sight.as_deref(),
+            focal_plane: self.focal_plane.as_ref(),
+            extra_sections: &self.extra_sections,
+        }
+    }
+}
+
+impl RunOutput {
+    /// The summary the products after the frames are written from.
+    ///
+    /// Errors: no frame (a `RunOutput` built by hand with an empty `frames`).
+    pub fn summary(&self) -> Result<RunSummary<'_>> {
+        let first = self
+            .frames
+            .first()
+            .ok_or_else(|| Error::param("run output", "no frames", "at least one exposed frame"))?;
+        Ok(RunSummary {
+            frame_count: self.frames.len(),
+            first,
+            sensor: &self.sensor,
+            report: &self.report,
+            warnings: &self.warnings,
+            line_of_sight: self.line_of_sight.as_deref(),
+            focal_plane: self.focal_plane.as_ref(),
+            extra_sections: &self.extra_sections,
+        })
+    }
+}
+
+/// Takes a run's frames one at a time, as soon as each is exposed (and, for a thermal
+/// sensor, calibrated), in frame order: [`run_streaming`] hands them over and holds none
+/// itself beyond frame 0. A `Vec<FrameProducts>` collects them ([`run`]); a
+/// [`ProductWriter`] writes them to disk.
+pub trait FrameConsumer {
+    /// Called once before the first frame with the number of frames the run will hand
+    /// over. Errors stop the run before any frame is imaged.
+    fn start(&mut self, frames: usize) -> Result<()> {
+        let _ = frames;
+        Ok(())
+    }
+
+    /// Frame `index` (0, 1, … in order). An error stops the run with that error: no
+    /// further frame is handed over.
+    fn frame(&mut self, index: usize, frame: FrameProducts) -> Result<()>;
+
+    /// How many of `frames` frames the consumer keeps in memory until the run ends (the
+    /// run's memory check counts them): none by default, all for a collecting `Vec`.
+    fn frames_held(&self, frames: usize) -> usize {
+        let _ = frames;
+        0
+    }
+}
+
+/// The collecting consumer: every frame in order, all held in memory.
+impl FrameConsumer for Vec<FrameProducts> {
+    fn start(&mut self, frames: usize) -> Result<()> {
+        self.reserve(frames);
+        Ok(())
+    }
+
+    fn frame(&mut self, _index: usize, frame: FrameProducts) -> Result<()> {
+        self.push(frame);
+        Ok(())
+    }
+
+    fn frames_held(&self, frames: usize) -> usize {
+        frames
+    }
 }
 
 /// A false-colour composite of runs of the channels of one camera (3-CCD, three-band): the
@@ -150,11 +289,30 @@ pub fn false_colour_composite(channels: &[(f64, &RunOutput)]) -> Result<ndarray:
             "exactly 3 channel runs",
         ));
     }
-    let mut order: Vec<&(f64, &RunOutput)> = channels.iter().collect();
+    let firsts = channels
+        .iter()
+        .map(|(l, out)| Ok((*l, out.summary()?.first)))
+        .collect::<Result<Vec<_>>>()?;
+    false_colour_composite_of(&firsts)
+}
+
+/// [`false_colour_composite`] of the channels' first frames (e.g. of [`StreamedRun`]s'
+/// [`StreamedRun::first`]), each with its response-weighted mean wavelength.
+pub fn false_colour_composite_of(
+    channels: &[(f64, &FrameProducts)],
+) -> Result<ndarray::Array3<u8>> {
+    if channels.len() != 3 {
+        return Err(Error::param(
+            "composite channels",
+            channels.len(),
+            "exactly 3 channel runs",
+        ));
+    }
+    let mut order: Vec<&(f64, &FrameProducts)> = channels.iter().collect();
     order.sort_by(|a, b| b.0.total_cmp(&a.0));
     let planes: Vec<Array2<f64>> = order
         .iter()
-        .map(|(_, out)| out.frames[0].dn.mapv(|v| v as f64))
+        .map(|(_, frame)| frame.dn.mapv(|v| v as f64))
         .collect();
     crate::cfa::false_colour([planes[0].view(), planes[1].view(), planes[2].view()], 0.5)
 }
@@ -184,8 +342,8 @@ fn input_geometry(options: &RunOptions, meta: &CubeMeta) -> Result<Geometry> {
 }
 
 /// Checks the run's largest allocations (padded FFT planes, scene and detector frames,
-/// the frames kept) against the memory budget before any is made; returns the bytes
-/// counted (one frame in flight).
+/// the `frames` frames of products held at once) against the memory budget before any is
+/// made; returns the bytes counted (one frame in flight).
 fn check_budget(
     imaging: &ImagingStage,
     meta: &CubeMeta,
@@ -272,15 +430,54 @@ impl FrameProducts {
     }
 }
 
+/// Frames of products a run holds at once with `consumer`: what the consumer keeps, or,
+/// when it keeps fewer than all, that plus two (the copy of frame 0 the run keeps for its
+/// report and the frame being handed over), never more than the frame count.
+fn frames_held(consumer: &dyn FrameConsumer, n_frames: usize) -> usize {
+    let held = consumer.frames_held(n_frames);
+    if held >= n_frames {
+        n_frames
+    } else {
+        held.saturating_add(2).min(n_frames)
+    }
+}
+
 /// Runs the chain on every frame of `reader` (a static input is imaged once and exposed
-/// `options.frames` times). Nothing is written: call [`RunOutput::write`].
-/// `progress(done, total)` is called after each band of each frame.
+/// `options.frames` times) and returns every frame's products in memory (the collecting
+/// [`FrameConsumer`] of [`run_streaming`]). Nothing is written: call
+/// [`RunOutput::write`]. `progress(done, total)` is called after each band of each frame.
 pub fn run(
     sensor: &Sensor,
     reader: &mut dyn CubeReader,
     options: &RunOptions,
-    mut progress: impl FnMut(usize, usize),
+    progress: impl FnMut(usize, usize),
 ) -> Result<RunOutput> {
+    let mut frames: Vec<FrameProducts> = Vec::new();
+    let s = run_streaming(sensor, reader, options, progress, &mut frames)?;
+    Ok(RunOutput {
+        frames,
+        sensor: s.sensor,
+        report: s.report,
+        warnings: s.warnings,
+        line_of_sight: s.line_of_sight,
+        focal_plane: s.focal_plane,
+        extra_sections: s.extra_sections,
+    })
+}
+
+/// Runs the chain as [`run`] does, handing every frame to `consumer` as soon as it is
+/// exposed (and calibrated), in frame order, and keeping only frame 0: the memory the run
+/// holds does not depend on the frame count (the memory check counts the frames the
+/// consumer says it holds, [`FrameConsumer::frames_held`]). The frames are the same, bit
+/// for bit, as [`run`]'s. An error (the run's or the consumer's) stops the run; frames
+/// handed over before it are the consumer's to discard.
+pub fn run_streaming(
+    sensor: &Sensor,
+    reader: &mut dyn CubeReader,
+    options: &RunOptions,
+    mut progress: impl FnMut(usize, usize),
+    consumer: &mut dyn FrameConsumer,
+) -> Result<StreamedRun> {
     let t_start = Instant::now();
     let meta = reader.meta().clone();
     let geometry = input_geometry(options, &meta)?;
@@ -293,7 +490,8 @@ pub fn run(
     let imaging = ImagingStage::new(sensor, &meta, &geometry, options, motion)?;
     let setup_s = t_setup.elapsed().as_secs_f64();
     warnings.extend(setup_warnings(&imaging, &meta, sensor, n_frames));
-    let run_bytes = check_budget(&imaging, &meta, sensor, n_frames)?;
+    let held = frames_held(consumer, n_frames);
+    let run_bytes = check_budget(&imaging, &meta, sensor, held)?;
     let truth = imaging.motion().map(|m| m.truth(n_frames));
     let job = frames::FrameJob {
         stage: &imaging,
@@ -304,18 +502,17 @@ pub fn run(
         n_frames,
         run_bytes,
     };
-    let done = frames::image_and_expose(&job, reader, &mut progress)?;
+    let done = frames::image_and_expose(&job, reader, &mut progress, consumer)?;
     // Every frame is imaged: the engine's kept frame buffers are not needed any more.
     imaging.release_frame_buffers();
-    let (mut frames, mut exposure) = (done.frames, done.exposure);
+    let (first, mut exposure) = (done.first, done.exposure);
     let focal_plane = FocalPlaneTruth::take(&mut exposure, options.first_frame);
     let read_warnings = [reader.warnings(), done.reader_warnings].concat();
     add_late_warnings(read_warnings, exposure.model().warnings(), &mut warnings);
     let t_cal = Instant::now();
-    let calibration = options.calibration.as_ref();
-    let outcome = calibrate::calibrate_frames(sensor, &exposure, calibration, &mut frames)?;
+    let outcome = done.calibration.finish(sensor, &exposure)?;
     let calibration = outcome.into_report(&mut warnings);
-    let calibration_s = t_cal.elapsed().as_secs_f64();
+    let calibration_s = done.calibration_s + t_cal.elapsed().as_secs_f64();
     let mut report = RunReport::assemble(RunFacts {
         sensor,
         model: exposure.model(),
@@ -328,8 +525,8 @@ pub fn run(
         sampling: imaging.sampling(),
         imaging: &done.stats,
         wrap_tolerance: options.wrap_tolerance,
-        first_electrons: &frames[0].electrons_mean,
-        first_dn: &frames[0].dn,
+        first_electrons: &first.electrons_mean,
+        first_dn: &first.dn,
         calibration,
         warnings: warnings.clone(),
         setup_s,
@@ -340,20 +537,31 @@ pub fn run(
     });
     report.input.units_source = reader.units_source();
     report.focal_plane = focal_plane::report(&exposure, focal_plane.as_ref(), &report);
-    if let Some(w) =
-        crate::report::saturation_warning(sensor, &frames[0].electrons_mean, &frames[0].dn)
-    {
-        report.warnings.push(w.clone());
-        warnings.push(w);
-    }
-    Ok(RunOutput {
-        frames,
+    add_saturation_warning(sensor, &first, &mut report, &mut warnings);
+    Ok(StreamedRun {
+        frame_count: n_frames,
+        first,
         sensor: sensor.clone(),
         report,
         warnings,
         line_of_sight: truth,
         focal_plane,
+        extra_sections: Vec::new(),
     })
+}
+
+/// The saturation warning of frame 0 ([`crate::report::saturation_warning`]), if any, in
+/// the report and the run's warnings.
+fn add_saturation_warning(
+    sensor: &Sensor,
+    first: &FrameProducts,
+    report: &mut RunReport,
+    warnings: &mut Vec<String>,
+) {
+    if let Some(w) = crate::report::saturation_warning(sensor, &first.electrons_mean, &first.dn) {
+        report.warnings.push(w.clone());
+        warnings.push(w);
+    }
 }
 
 /// What the set-up found for the user: the sampling's and the detector model's warnings,

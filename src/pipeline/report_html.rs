@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use serde_json::Value;
 
-use super::RunOutput;
+use super::RunSummary;
 use crate::display::{self, base64, Stretch};
 use crate::error::{Error, Result};
 use crate::plot::{self, HistogramPlot, Marker};
@@ -38,6 +38,22 @@ pub struct Picture {
     pub png: Vec<u8>,
     /// One-line caption: what is shown and how it is scaled.
     pub caption: String,
+}
+
+/// A section a caller adds to the page after the run ([`super::RunOutput::extra_sections`]):
+/// a table of labelled values, notes, and pictures (written beside `report.html` too).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExtraSection {
+    /// HTML id of the section, e.g. `figures-of-merit`.
+    pub id: &'static str,
+    /// Heading.
+    pub title: String,
+    /// Table rows: label and value, as text (escaped when written).
+    pub rows: Vec<(String, String)>,
+    /// Notes below the table (escaped when written).
+    pub notes: Vec<String>,
+    /// Pictures shown after the table.
+    pub pictures: Vec<Picture>,
 }
 
 /// The pictures of the first frame of a run.
@@ -69,11 +85,8 @@ pub struct RunPictures {
 
 impl RunPictures {
     /// Draws the pictures of frame 0 of `out`.
-    pub fn render(out: &RunOutput) -> Result<RunPictures> {
-        let frame = out
-            .frames
-            .first()
-            .ok_or_else(|| Error::param("run output", "no frames", "at least one exposed frame"))?;
+    pub fn render(out: &RunSummary) -> Result<RunPictures> {
+        let frame = out.first;
         let (grey, dn_stretch) = display::dn_display(frame.dn.view());
         let (rows, cols) = grey.dim();
         let samples: Vec<u8> = grey.iter().copied().collect();
@@ -112,7 +125,7 @@ impl RunPictures {
         let optics = &out.report.optics;
         let mtf = match optics.mean_wavelength_um {
             Some(l) => {
-                let curves = MtfCurves::compute(&out.sensor, l, None, MTF_POINTS)?;
+                let curves = MtfCurves::compute(out.sensor, l, None, MTF_POINTS)?;
                 Some(Picture {
                     file_name: "mtf.png",
                     png: curves.render_png(&out.sensor.name)?,
@@ -124,14 +137,14 @@ impl RunPictures {
             }
             None => None,
         };
-        let trajectory = match &out.line_of_sight {
+        let trajectory = match out.line_of_sight {
             Some(truth) => Some(Picture {
                 file_name: "trajectory.png",
                 png: super::motion::trajectory_png(truth)?,
                 caption: format!(
                     "line of sight: mean image displacement and smear per exposure window, detector pixels ({} windows; values in los.csv){}",
                     truth.len(),
-                    if out.frames.len() > 1 {
+                    if out.frame_count > 1 {
                         "; the sequence itself: preview.png (animated)"
                     } else {
                         ""
@@ -153,7 +166,7 @@ impl RunPictures {
             }),
             None => None,
         };
-        let spectral = spectral_response(&out.sensor)?;
+        let spectral = spectral_response(out.sensor)?;
         Ok(RunPictures {
             dn,
             dn_stretch,
@@ -250,8 +263,8 @@ fn spectral_response(sensor: &crate::sensor::Sensor) -> Result<Option<Picture>> 
 }
 
 /// The DN histogram of frame 0, with the display stretch and full scale marked.
-fn dn_histogram(out: &RunOutput, stretch: &Stretch) -> Result<Picture> {
-    let dn = &out.frames[0].dn;
+fn dn_histogram(out: &RunSummary, stretch: &Stretch) -> Result<Picture> {
+    let dn = &out.first.dn;
     let mut sorted: Vec<f64> = dn.iter().map(|v| *v as f64).collect();
     sorted.sort_by(f64::total_cmp);
     let span = (stretch.hi - stretch.lo).max(10.0);
@@ -444,9 +457,9 @@ impl Facts {
 }
 
 /// The page for `out` with `pictures` inline: one function per section, in page order.
-pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
+pub fn render_page(out: &RunSummary, pictures: &RunPictures) -> Result<String> {
     let facts = Facts {
-        r: serde_json::to_value(&out.report)
+        r: serde_json::to_value(out.report)
             .map_err(|e| Error::param("run report", e.to_string(), "a serialisable report"))?,
     };
     let mut h = String::new();
@@ -460,13 +473,16 @@ pub fn render_page(out: &RunOutput, pictures: &RunPictures) -> Result<String> {
     section_calibration(&mut h, &facts);
     h.push_str("</div>\n");
     section_pictures(&mut h, pictures);
+    for extra in out.extra_sections {
+        section_extra(&mut h, extra);
+    }
     section_footer(&mut h, &facts);
     Ok(h)
 }
 
 /// `<head>`, title and the header: sensor, description, options, seed, input, version.
-fn section_head(h: &mut String, out: &RunOutput, facts: &Facts) {
-    let sensor = &out.sensor;
+fn section_head(h: &mut String, out: &RunSummary, facts: &Facts) {
+    let sensor = out.sensor;
     let options = facts
         .r
         .pointer("/options")
@@ -788,10 +804,35 @@ fn section_calibration(h: &mut String, facts: &Facts) {
     h.push_str("</table></section>\n");
 }
 
+/// A caller's section: its table and notes, then its pictures.
+fn section_extra(h: &mut String, s: &ExtraSection) {
+    let _ = writeln!(
+        h,
+        "<section id=\"{}\"><h2>{}</h2><table>",
+        s.id,
+        escape_html(&s.title)
+    );
+    for (label, value) in &s.rows {
+        row(h, label, &escape_html(value), None);
+    }
+    h.push_str("</table>\n");
+    for n in &s.notes {
+        let _ = writeln!(h, "<p>{}</p>", escape_html(n));
+    }
+    h.push_str("</section>\n");
+    figures(h, s.pictures.iter());
+}
+
 /// The pictures, each a `<figure>` with its caption; a small `dn.png` enlarged by a whole
 /// factor with square pixels.
 fn section_pictures(h: &mut String, pictures: &RunPictures) {
-    for p in pictures.all() {
+    figures(h, pictures.all().into_iter());
+}
+
+/// Each picture as a `<figure>` with its caption (`dn.png` enlarged, see
+/// [`section_pictures`]).
+fn figures<'a>(h: &mut String, pictures: impl Iterator<Item = &'a Picture>) {
+    for p in pictures {
         let (w, ht) = png_size(&p.png).unwrap_or((0, 0));
         let (scale, class) = if p.file_name == "dn.png" {
             (dn_display_scale(w), " class=\"pixels\"")
@@ -826,9 +867,14 @@ fn section_footer(h: &mut String, facts: &Facts) {
 }
 
 /// Writes the pictures and `report.html` into `dir`. Returns the paths written.
-pub fn write(out: &RunOutput, dir: &Path) -> Result<Vec<PathBuf>> {
+pub fn write(out: &RunSummary, dir: &Path) -> Result<Vec<PathBuf>> {
     let pictures = RunPictures::render(out)?;
     let mut written = pictures.write(dir)?;
+    for p in out.extra_sections.iter().flat_map(|s| &s.pictures) {
+        let path = dir.join(p.file_name);
+        display::write_png_bytes(&path, &p.png)?;
+        written.push(path);
+    }
     let page = render_page(out, &pictures)?;
     let p = dir.join("report.html");
     crate::io::atomic_write(&p, |w| crate::io::write_all(w, page.as_bytes(), &p))?;

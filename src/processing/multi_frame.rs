@@ -42,6 +42,45 @@ pub enum SequenceNoise {
     Constant(f64),
 }
 
+impl SequenceNoise {
+    /// The rule a user names: a constant `nsr`, else `noise` = `auto` (the in-cell
+    /// scatter) or `model` (one frame's temporal and quantisation noise of `model` at the
+    /// mean of `signal`, the stack in DN above the black level; NaN samples skipped).
+    /// Any other name is an error listing the valid ones.
+    pub fn from_rule(
+        nsr: Option<f64>,
+        noise: &str,
+        signal: ArrayView3<f64>,
+        model: &crate::detector::DetectorModel,
+    ) -> Result<Self> {
+        Ok(match (nsr, noise) {
+            (Some(x), _) => SequenceNoise::Constant(x),
+            (None, "model") => {
+                let (sum, n) = signal
+                    .iter()
+                    .filter(|v| v.is_finite())
+                    .fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
+                let mean_e = (sum / n.max(1) as f64 / model.gain_dn_per_e()).max(0.0);
+                SequenceNoise::Model {
+                    frame_variance: model.temporal_noise_dn(mean_e).powi(2)
+                        + model.quantisation_noise_dn().powi(2),
+                }
+            }
+            (None, "auto") => SequenceNoise::Scatter,
+            (None, other) => return Err(Error::param("noise", other, "`auto` or `model`")),
+        })
+    }
+
+    /// `scatter`, `model` or `constant` (restore.json's `noise_rule`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            SequenceNoise::Scatter => "scatter",
+            SequenceNoise::Model { .. } => "model",
+            SequenceNoise::Constant(_) => "constant",
+        }
+    }
+}
+
 /// What a multi-frame restoration did.
 #[derive(Debug, Clone)]
 pub struct SequenceRestoration {

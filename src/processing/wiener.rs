@@ -201,6 +201,21 @@ impl SensorTransfer {
         })
     }
 
+    /// The same transfer function (spectral weights kept) with its turbulence and aerosol
+    /// over a path of `range_m` ([`SystemOtf::over_range`]).
+    ///
+    /// Errors: `range_m` not finite and > 0.
+    pub fn over_range(&self, range_m: f64) -> Result<Self> {
+        Ok(SensorTransfer {
+            otf: self.otf.over_range(range_m)?,
+            ifov_rad: self.ifov_rad,
+            wavelength_um: self.wavelength_um.clone(),
+            weights: self.weights.clone(),
+            reference_temperature_k: self.reference_temperature_k,
+            mosaic: self.mosaic,
+        })
+    }
+
     /// The blackbody temperature of the spectral weighting, K.
     pub fn reference_temperature_k(&self) -> f64 {
         self.reference_temperature_k
@@ -760,6 +775,40 @@ pub fn psnr_db(estimate: ArrayView2<f64>, truth: ArrayView2<f64>) -> Result<f64>
         .sum::<f64>()
         / truth.len() as f64;
     Ok(10.0 * (peak * peak / mse).log10())
+}
+
+/// The summary `restore.json` gives of an image: mean, standard deviation (population),
+/// minimum and maximum.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ImageStats {
+    /// Mean.
+    pub mean: f64,
+    /// Standard deviation, √(Σ(v − mean)²/n).
+    pub std: f64,
+    /// Minimum.
+    pub min: f64,
+    /// Maximum.
+    pub max: f64,
+}
+
+impl ImageStats {
+    /// The statistics of `a` (NaN mean and std for an empty image).
+    pub fn of(a: &Array2<f64>) -> Self {
+        let n = a.len() as f64;
+        let mean = a.sum() / n;
+        let var = a.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n;
+        let (min, max) = a
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                (l.min(*v), h.max(*v))
+            });
+        ImageStats {
+            mean,
+            std: var.sqrt(),
+            min,
+            max,
+        }
+    }
 }
 
 #[cfg(test)]

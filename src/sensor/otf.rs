@@ -99,8 +99,12 @@ enum DefocusAmount {
 enum Turbulence {
     /// Horizontal path (closed form, docs/design.md §4.7).
     Horizontal { cn2: f64, range_m: f64 },
-    /// Slant path: the spherical-wave weighted ∫Cn² (m^1/3), computed once.
-    Slant { weighted_cn2: f64 },
+    /// Slant path: the spherical-wave weighted ∫Cn² (m^1/3), computed once, and the path
+    /// it was computed for.
+    Slant {
+        weighted_cn2: f64,
+        path: atmosphere::SlantPath,
+    },
 }
 
 /// The resolved cascade of a sensor's transfer functions.
@@ -199,6 +203,7 @@ impl SystemOtf {
                 )?;
                 Some(Turbulence::Slant {
                     weighted_cn2: path.spherical_weighted_cn2(),
+                    path,
                 })
             }
             None => None,
@@ -264,6 +269,53 @@ impl SystemOtf {
         otf
     }
 
+    /// Whether the cascade holds a component that depends on the path length to the
+    /// scene (turbulence, aerosol).
+    pub fn depends_on_range(&self) -> bool {
+        self.turbulence.is_some() || self.aerosol.is_some()
+    }
+
+    /// The same cascade with the turbulence and aerosol components evaluated over a path of
+    /// `range_m` instead of the sensor file's own range (the range performance of
+    /// `merit::assess` at each range). A slant path keeps its end heights; a range
+    /// shorter than their difference is taken as the vertical path (the shortest path
+    /// the heights allow).
+    ///
+    /// Errors: `range_m` not finite and > 0.
+    pub fn over_range(&self, range_m: f64) -> Result<SystemOtf> {
+        if !(range_m.is_finite() && range_m > 0.0) {
+            return Err(crate::error::Error::param(
+                "range_m",
+                range_m,
+                "a finite path length > 0 m",
+            ));
+        }
+        let mut otf = self.clone();
+        otf.turbulence = match self.turbulence {
+            Some(Turbulence::Horizontal { cn2, .. }) => {
+                Some(Turbulence::Horizontal { cn2, range_m })
+            }
+            Some(Turbulence::Slant { path, .. }) => {
+                let shortest = (path.target_height_m - path.sensor_height_m).abs();
+                let path = atmosphere::SlantPath::new(
+                    path.cn2_at_1m,
+                    path.sensor_height_m,
+                    path.target_height_m,
+                    range_m.max(shortest),
+                )?;
+                Some(Turbulence::Slant {
+                    weighted_cn2: path.spherical_weighted_cn2(),
+                    path,
+                })
+            }
+            None => None,
+        };
+        if let Some(a) = otf.aerosol.as_mut() {
+            a.range_m = range_m;
+        }
+        Ok(otf)
+    }
+
     /// The enabled components, in report order.
     pub fn components(&self) -> &[Component] {
         &self.components
@@ -281,7 +333,7 @@ impl SystemOtf {
             Turbulence::Horizontal { cn2, range_m } => {
                 atmosphere::fried_r0_horizontal(lambda_m, range_m, cn2).ok()
             }
-            Turbulence::Slant { weighted_cn2 } => Some(atmosphere::fried_r0_from_weighted_cn2(
+            Turbulence::Slant { weighted_cn2, .. } => Some(atmosphere::fried_r0_from_weighted_cn2(
                 lambda_m,
                 weighted_cn2,
             )),

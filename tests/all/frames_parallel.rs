@@ -474,3 +474,180 @@ fn cli_frames_in_flight_changes_no_product_byte() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("--frames-in-flight"));
     assert!(!dir.path().join("never").exists());
 }
+
+/// A consumer that checks frames come once each, in order, and records how many bands
+/// the run had imaged when each arrived.
+struct Recorder<'a> {
+    bands_done: &'a std::sync::atomic::AtomicUsize,
+    started_with: Option<usize>,
+    bands_at: Vec<usize>,
+    frames: Vec<pipeline::FrameProducts>,
+}
+
+impl pipeline::FrameConsumer for Recorder<'_> {
+    fn start(&mut self, frames: usize) -> eoir::Result<()> {
+        self.started_with = Some(frames);
+        Ok(())
+    }
+
+    fn frame(&mut self, index: usize, frame: pipeline::FrameProducts) -> eoir::Result<()> {
+        assert_eq!(index, self.frames.len(), "frames in order, once each");
+        self.bands_at
+            .push(self.bands_done.load(std::sync::atomic::Ordering::Relaxed));
+        self.frames.push(frame);
+        Ok(())
+    }
+}
+
+/// The streamed run (issue 34: memory independent of the frame count): each frame is
+/// handed on as soon as it is exposed — with one frame in flight, frame i arrives when
+/// exactly i + 1 frames' bands were imaged, not after the whole sequence — with the
+/// frames and report of the collecting `pipeline::run`, calibrated (radiance and
+/// temperature made frame by frame). Its memory check counts only the frames it holds:
+/// a budget with room for 7 frames of products refuses the collecting run of 12 and
+/// lets the streamed one through. `eoir run` of the same sequence writes, frame by frame,
+/// the library's frames: `dn_stack.npy` (read with ndarray-npy) and a frame's TIFFs hold
+/// them, and the animated preview's frames use the stretch of the 0.5 and 99.5
+/// percentiles of every DN of the sequence, computed here by sorting them all.
+#[test]
+fn a_streamed_run_hands_each_frame_on_as_exposed_and_writes_the_collected_products() {
+    const N: usize = 12;
+    let (rows, cols) = (96, 96);
+    let (sensor, frames) = sequence(rows, cols, 3, N);
+    let cube = MemoryCube::sequence(frames.clone(), None).unwrap();
+    let open = || Box::new(cube.clone()) as Box<dyn CubeReader>;
+    let opts = options(Some(1), true);
+    let collected = run(&sensor, &open, 2, &opts).unwrap();
+    let bands_done = std::sync::atomic::AtomicUsize::new(0);
+    let mut rec = Recorder {
+        bands_done: &bands_done,
+        started_with: None,
+        bands_at: Vec::new(),
+        frames: Vec::new(),
+    };
+    let mut total = 0;
+    let streamed = in_pool(2, || {
+        pipeline::run_streaming(
+            &sensor,
+            open().as_mut(),
+            &opts,
+            |d, t| {
+                bands_done.store(d, std::sync::atomic::Ordering::Relaxed);
+                total = t;
+            },
+            &mut rec,
+        )
+    })
+    .unwrap();
+    assert_eq!(rec.started_with, Some(N));
+    let per_frame = total / N;
+    let want: Vec<usize> = (1..=N).map(|i| i * per_frame).collect();
+    assert_eq!(rec.bands_at, want, "frames handed on as they are exposed");
+    assert_eq!(streamed.frame_count, N);
+    assert!(collected.frames[0].temperature.is_some(), "calibrated");
+    assert_same(
+        &collected,
+        &RunOutput {
+            frames: rec.frames,
+            ..collected.clone()
+        },
+        "streamed frames",
+    );
+    assert_eq!(streamed.first.dn, collected.frames[0].dn);
+    assert_eq!(
+        streamed.first.temperature.as_ref().map(bits),
+        collected.frames[0].temperature.as_ref().map(bits)
+    );
+    let stable = |r: &eoir::report::RunReport| {
+        let mut v = serde_json::to_value(r).unwrap();
+        let o = v.as_object_mut().unwrap();
+        o.remove("timings_s");
+        o.remove("execution");
+        v
+    };
+    assert_eq!(stable(&streamed.report), stable(&collected.report));
+
+    // The memory check: room for 7 frames of detector products (17 bytes a pixel) beyond
+    // what the streamed run counts (2 frames held).
+    let frame_bytes = (rows * cols * 17) as u64;
+    let budget = streamed.report.execution.run_bytes + 5 * frame_bytes;
+    let e = run_within(&sensor, &open, 2, &opts, budget).unwrap_err();
+    assert!(
+        matches!(e, eoir::error::Error::TooLarge { .. }),
+        "the collecting run counts all {N} frames: {e}"
+    );
+    let mut sink = Vec::new();
+    let ok = in_pool(2, || {
+        eoir::limits::with_thread_max_memory(budget, || {
+            pipeline::run_streaming(
+                &sensor,
+                open().as_mut(),
+                &opts,
+                |_, _| {},
+                &mut DropFrames(&mut sink),
+            )
+        })
+    })
+    .unwrap();
+    assert!(ok.is_ok(), "{:?}", ok.err());
+    assert_eq!(sink, (0..N).collect::<Vec<_>>());
+
+    // The CLI streams the same frames into its product set.
+    let dir = tempfile::tempdir().unwrap();
+    let input = write_npy_sequence(dir.path(), &frames);
+    let out = dir.path().join("out");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_eoir"))
+        .args(["run", "--quiet", "--sensor", "multimir", "--option"])
+        .args(["sequence=still", "--seed", "11", "--frames-in-flight", "1"])
+        .args(["--set", &format!("detector.rows={rows}")])
+        .args(["--set", &format!("detector.cols={cols}")])
+        .arg(&input)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stack: ndarray::Array3<u16> =
+        ndarray_npy::read_npy(out.join("dn_stack.npy")).expect("dn_stack.npy");
+    assert_eq!(stack.dim(), (N, rows, cols));
+    for (f, frame) in collected.frames.iter().enumerate() {
+        assert_eq!(stack.index_axis(Axis(0), f), frame.dn, "dn_stack frame {f}");
+    }
+    let f5 = &collected.frames[5];
+    let dn5 = io::raster::read_tiff_u16(&out.join("frame_0005_dn.tiff")).unwrap();
+    assert_eq!(dn5, f5.dn);
+    let t5 = io::raster::read_tiff_f32(&out.join("frame_0005_temperature.tiff")).unwrap();
+    assert_eq!(bits(&t5), bits(f5.temperature.as_ref().unwrap()));
+    let mut all: Vec<u16> = stack.iter().copied().collect();
+    all.sort_unstable();
+    let pick = |q: f64| all[((all.len() - 1) as f64 * q) as usize] as f64;
+    let (lo, hi) = (pick(0.005), pick(0.995));
+    let png = std::fs::read(out.join("preview.png")).unwrap();
+    let mut reader = png::Decoder::new(std::io::Cursor::new(png))
+        .read_info()
+        .unwrap();
+    let mut buf = vec![0u8; reader.output_buffer_size().unwrap()];
+    for f in 0..N {
+        reader.next_frame(&mut buf).unwrap();
+        let want: Vec<u8> = stack
+            .index_axis(Axis(0), f)
+            .iter()
+            .map(|&v| {
+                ((v as f64 - lo) / (hi - lo).max(1.0) * 255.0)
+                    .round()
+                    .clamp(0.0, 255.0) as u8
+            })
+            .collect();
+        assert!(buf[..rows * cols] == want[..], "preview frame {f}");
+    }
+}
+
+/// A consumer that keeps only the indices of the frames it was handed.
+struct DropFrames<'a>(&'a mut Vec<usize>);
+
+impl pipeline::FrameConsumer for DropFrames<'_> {
+    fn frame(&mut self, index: usize, _frame: pipeline::FrameProducts) -> eoir::Result<()> {
+        self.0.push(index);
+        Ok(())
+    }
+}

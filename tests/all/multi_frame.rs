@@ -316,6 +316,24 @@ fn sixteen_wandering_frames_resolve_beyond_the_single_frame_nyquist() {
     );
     assert!(many_true > 1.5 * one_true);
     assert!(many_true / input_amplitude > 0.5 && many_true / input_amplitude < 1.2);
+    // The table of docs/multi-frame.md is this run's: every figure it prints.
+    let page = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/multi-frame.md"),
+    )
+    .unwrap();
+    for cell in [
+        format!("| {worst_reg:.3} px, over displacements up to {spread:.2} px |"),
+        format!("| {raw_n:.3} |"),
+        format!("| {one_n:.3} |"),
+        format!("| {added_n:.3} |"),
+        format!("| {many_n:.3} |"),
+        format!("| {many_true:.0} / {many_alias:.0} / {many_floor:.0} DN |"),
+        format!("| {:.2} |", many_true / input_amplitude),
+        format!("{input_amplitude:.0} DN)"),
+        format!("| {one_true:.0} / {one_alias:.0} DN (indistinguishable) |"),
+    ] {
+        assert!(page.contains(&cell), "docs/multi-frame.md lacks `{cell}`");
+    }
 
     // The same sequence through the CLI: `eoir restore DIR` writes the fine image and the
     // registration's residual against the truth table; bad input writes nothing.

@@ -598,3 +598,64 @@ fn a_shorter_run_replaces_the_longer_set_and_leaves_other_files() {
     assert!(extra.is_empty(), "left from the 12-frame run: {extra:?}");
     assert_eq!(now, fresh);
 }
+
+/// `eoir run` writes a sequence's frames into the staging set as they are exposed (issue
+/// 34): a write that fails part-way through the sequence — here `dn_stack.npy`, which
+/// grows by one 32 × 32 DN frame (2 KiB) per frame, passes `ulimit -f 6` (6 KiB) when its
+/// buffer is first written out, at frame 3 of 16, long before the products written at
+/// the end — is one error, and the output folder keeps the complete old set, with no
+/// frames of the failed run and no staging litter.
+#[test]
+fn a_failure_part_way_through_a_streamed_sequence_leaves_the_old_set() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fov = (32.0 * 0.24e-3f64).to_degrees().to_string();
+    let scene = [
+        "scene",
+        "blackbody",
+        "--rows",
+        "32",
+        "--cols",
+        "32",
+        "--lo-um",
+        "4.4",
+        "--hi-um",
+        "5.4",
+        "--bands",
+        "11",
+        "--fov-deg",
+        &fov,
+        "-o",
+        "s32.hdr",
+    ];
+    let o = super::common::eoir(d, &scene);
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    let run = |frames: &str| {
+        os(&strings(&[
+            "run",
+            "--sensor",
+            "multimir",
+            "--option",
+            "sequence=still",
+            "--quiet",
+            "--set",
+            "detector.rows=32",
+            "--set",
+            "detector.cols=32",
+            "s32.hdr",
+            "-o",
+            "out",
+            "--frames",
+            frames,
+        ]))
+    };
+    let o = finish_within(spawn_limited(d, &run("3")), "run", LONG_RUN_AFTER);
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    let volatile = ["report.json", "report.html"];
+    let old = stable(listing(&d.join("out")), &volatile);
+    let what = "a 16-frame run under ulimit -f 6";
+    let o = finish(spawn_limited_with(d, &run("16"), "ulimit -f 6"), what);
+    assert_one_error(&o, what, &["file too large", "dn_stack.npy"]);
+    assert_eq!(stable(listing(&d.join("out")), &volatile), old, "{what}");
+    assert!(litter(d).is_empty(), "{what}: litter {:?}", litter(d));
+}
