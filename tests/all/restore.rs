@@ -135,13 +135,23 @@ fn restoration_of_a_bar_scene_gains_psnr_and_auto_is_near_the_best_constant() {
     raster::write_tiff_u16(&input, rec.dn.view()).unwrap();
     let restored_dn = restore_cli(&input, &dir.path().join("out"), &[]);
     let to_e = |dn: &Array2<f64>| dn.mapv(|v| (v - rec.black) / rec.gain);
-    // The raw image with its dead pixels replaced the same way, for a fair comparison.
-    let (raw_clean, replaced) =
-        replace_invalid_pixels(rec.dn.mapv(f64::from).view(), IMPULSE_K_SIGMA).unwrap();
+    // The raw image with its dead pixels replaced the same way as `eoir restore` does
+    // (the defects found in the DN image, 0 DN and the ADC's full scale known), for a fair
+    // comparison.
+    let found = eoir::processing::bad_pixels::find_image_defects(
+        rec.dn.mapv(f64::from).view(),
+        IMPULSE_K_SIGMA,
+        Some(s.detector().max_dn()),
+    )
+    .unwrap();
+    let replaced = found.defects.count();
     assert!(
-        replaced >= 20,
+        replaced >= 40,
         "0.5 % of 9216 pixels are dead: {replaced} replaced"
     );
+    let raw_clean =
+        eoir::processing::bad_pixels::replace(rec.dn.mapv(f64::from).view(), &found.defects)
+            .unwrap();
     let raw_e = to_e(&raw_clean);
     let restored_e = to_e(&restored_dn);
     let psnr_raw = psnr_db(raw_e.view(), ideal.view()).unwrap();
@@ -160,18 +170,20 @@ fn restoration_of_a_bar_scene_gains_psnr_and_auto_is_near_the_best_constant() {
     // The library's defaults on the same electrons match the CLI's (units cancel): the
     // defects and saturated regions found in the image, `--noise auto --method auto`.
     let lib_auto = {
-        use eoir::processing::bad_pixels::{find_image_defects, replace};
         use eoir::processing::wiener::{restore, Method, RestoreMasks};
-        let dn = rec.dn.mapv(f64::from);
-        let max_dn = s.detector().max_dn();
-        let found = find_image_defects(dn.view(), IMPULSE_K_SIGMA, Some(max_dn)).unwrap();
-        let e = to_e(&replace(dn.view(), &found.defects).unwrap());
         let mask = found.defects.union(&found.saturated).unwrap();
         let masks = RestoreMasks {
             noise: Some(&mask),
             saturated: (found.saturated.count() > 0).then_some(&found.saturated),
         };
-        restore(e.view(), &transfer, NoiseRule::Auto, Method::Auto, masks).unwrap()
+        restore(
+            raw_e.view(),
+            &transfer,
+            NoiseRule::Auto,
+            Method::Auto,
+            masks,
+        )
+        .unwrap()
     };
     let psnr_lib = psnr_db(lib_auto.image.view(), ideal.view()).unwrap();
     eprintln!(
