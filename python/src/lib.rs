@@ -1164,6 +1164,7 @@ fn restore<'py>(
                 "largest_cluster_px": found.largest_cluster,
                 "saturated_px": found.saturated.count(),
                 "saturated_raised_px": r.saturated_raised,
+                "saturated_filled_px": r.saturated_filled,
             },
             "method": r.method,
             "method_requested": if nsr.is_some() { "constant" } else { "auto" },

@@ -296,6 +296,7 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
             "largest_cluster_px": defects.largest_cluster,
             "saturated_px": saturated.count(),
             "saturated_raised_px": r.saturated_raised,
+            "saturated_filled_px": r.saturated_filled,
         },
         "noise_rule": r.rule,
         "method": r.method,

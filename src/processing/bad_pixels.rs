@@ -442,6 +442,12 @@ fn components(mask: &Array2<bool>) -> Vec<Vec<(usize, usize)>> {
     out
 }
 
+/// The 8-connected clusters of flagged pixels in `map`, each as its pixel list, in
+/// row-major order of each cluster's first pixel.
+pub fn clusters(map: &BadPixelMap) -> Vec<Vec<(usize, usize)>> {
+    components(map.mask())
+}
+
 /// Sizes (pixels) of the 8-connected clusters of flagged pixels in `map`, in row-major
 /// order of each cluster's first pixel.
 pub fn cluster_sizes(map: &BadPixelMap) -> Vec<usize> {

@@ -14,6 +14,8 @@
 //!   docs/design.md §4.9.
 //! - [`wiener`]: restoration with the sensor's own transfer function on the detector
 //!   grid: classic Wiener (FOI report eq. 3.6) and Wiener–Hunt (Laplacian prior).
+//! - [`clipped_fill`]: the blurred intensity of small clipped clusters from the PSF's
+//!   wings, filled in before a restoration filter.
 //! - [`restore_rule`]: the estimated error of each restoration filter and the automatic
 //!   choice among them (the input itself included).
 //! - [`edge_mtf`]: ISO 12233 slanted-edge MTF measurement.
@@ -27,6 +29,7 @@
 //! Frames stored as integers (`Array2<u16>` from an ADC) are converted with [`to_f64`].
 
 pub mod bad_pixels;
+pub mod clipped_fill;
 pub mod edge_mtf;
 pub mod multi_frame;
 pub mod netd;

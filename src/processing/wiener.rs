@@ -88,6 +88,7 @@ use crate::error::{Error, Result};
 use crate::imaging::fft::RealFft2;
 use crate::imaging::next_fast_len;
 use crate::processing::bad_pixels::BadPixelMap;
+use crate::processing::clipped_fill::fill_clipped;
 use crate::processing::noise_estimate::immerkaer_sigma;
 use crate::processing::restore_rule::{self, guard, Measured};
 pub use crate::processing::restore_rule::{Candidate, Method};
@@ -316,6 +317,9 @@ pub struct Restoration {
     pub guarded_bins: usize,
     /// Pixels raised back to their recorded (saturated) value.
     pub saturated_raised: usize,
+    /// Clipped pixels whose value the filter saw raised to the fit of the PSF's wings
+    /// around them ([`crate::processing::clipped_fill`]).
+    pub saturated_filled: usize,
     /// Padded FFT frame (rows, cols).
     pub padded_shape: (usize, usize),
 }
@@ -504,11 +508,9 @@ pub fn restore(
     };
     let ny = next_fast_len(rows + 2 * pad_for(rows));
     let nx = next_fast_len(cols + 2 * pad_for(cols));
-    let (mut padded, py, px) = pad_image(image, ny, nx);
     let fft = RealFft2::new(ny, nx);
     let mut spec = Array2::<Complex64>::zeros(fft.spectrum_shape());
     let mut scratch = Vec::new();
-    fft.forward(&mut padded, &mut spec, &mut scratch);
     let h = transfer.on_grid(ny, nx)?;
     if h.dim() != spec.dim() {
         return Err(Error::param(
@@ -524,6 +526,25 @@ pub fn restore(
             "1 (a normalised transfer function)",
         ));
     }
+    // Small clipped clusters: their blurred values estimated from the PSF's wings
+    // (processing::clipped_fill), so that the filter does not see a clipped plateau.
+    let (filled, saturated_filled) = match masks.saturated {
+        Some(m) if m.count() > 0 => {
+            let mut hs = h.mapv(|v| Complex64::new(v, 0.0));
+            let mut psf = Array2::<f64>::zeros((ny, nx));
+            fft.inverse(&mut hs, &mut psf, &mut scratch);
+            let at = |dy: isize, dx: isize| {
+                psf[[
+                    dy.rem_euclid(ny as isize) as usize,
+                    dx.rem_euclid(nx as isize) as usize,
+                ]]
+            };
+            fill_clipped(image, m, masks.noise, at)?
+        }
+        _ => (image.to_owned(), 0),
+    };
+    let (mut padded, py, px) = pad_image(filled.view(), ny, nx);
+    fft.forward(&mut padded, &mut spec, &mut scratch);
     let npix = pad_noise_factor(rows, cols, ny, nx);
     let mut exponent = None;
     let mut candidates = Vec::new();
@@ -648,6 +669,7 @@ pub fn restore(
         candidates,
         guarded_bins,
         saturated_raised,
+        saturated_filled,
         padded_shape: (ny, nx),
     })
 }
