@@ -1052,8 +1052,9 @@ fn restore<'py>(
     units: &str,
     input_name: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
+    use eoir::processing::bad_pixels::{find_image_defects, replace};
     use eoir::processing::wiener::{
-        self, replace_invalid_pixels, NoiseRule, SensorTransfer, IMPULSE_K_SIGMA,
+        self, Method, NoiseRule, RestoreMasks, SensorTransfer, IMPULSE_K_SIGMA,
     };
     let sensor = &sensor.inner;
     let image = image.as_array().to_owned();
@@ -1111,7 +1112,16 @@ fn restore<'py>(
             }
             0.0
         };
-        let (clean, replaced) = replace_invalid_pixels(image.view(), IMPULSE_K_SIGMA)?;
+        // As `eoir restore` on an image without its run's instance.json: the defect
+        // clusters and saturated regions found in the image.
+        let found =
+            find_image_defects(image.view(), IMPULSE_K_SIGMA, is_dn.then(|| model.max_dn()))?;
+        let replaced = found.defects.count();
+        let clean = if replaced > 0 {
+            replace(image.view(), &found.defects)?
+        } else {
+            image.clone()
+        };
         let signal = clean.mapv(|v| v - black);
         let rule = match (nsr, noise.as_str()) {
             (Some(x), _) => NoiseRule::Constant(x),
@@ -1137,7 +1147,12 @@ fn restore<'py>(
             (None, _) => NoiseRule::Auto,
         };
         let transfer = SensorTransfer::new(sensor)?;
-        let r = wiener::wiener_restore(signal.view(), &transfer, rule)?;
+        let noise_mask = found.defects.union(&found.saturated)?;
+        let masks = RestoreMasks {
+            noise: Some(&noise_mask),
+            saturated: (found.saturated.count() > 0).then_some(&found.saturated),
+        };
+        let r = wiener::restore(signal.view(), &transfer, rule, Method::Auto, masks)?;
         let restored = r.image.mapv(|v| v + black);
         let report = serde_json::json!({
             "input": input_name,
@@ -1151,7 +1166,20 @@ fn restore<'py>(
             "nsr_median": r.nsr_median,
             "noise_power": r.noise_power,
             "noise_sigma": r.noise_sigma,
-            "noise_bins": r.noise_bins.map(|(n, negligible)| serde_json::json!({"count": n, "negligible_h": negligible})),
+            "defects": {
+                "source": "image",
+                "replaced": replaced,
+                "clusters": found.clusters,
+                "largest_cluster_px": found.largest_cluster,
+                "saturated_px": found.saturated.count(),
+                "saturated_raised_px": r.saturated_raised,
+                "saturated_filled_px": r.saturated_filled,
+            },
+            "method": r.method,
+            "method_requested": if nsr.is_some() { "constant" } else { "auto" },
+            "candidates": r.candidates.iter().map(|c| serde_json::json!({"method": c.name, "parameter": c.parameter, "relative_error": c.relative_risk})).collect::<Vec<_>>(),
+            "sharpness_guard_bins": r.guarded_bins,
+            "noise_sigma_measured": r.noise_sigma_measured,
             "object_spectrum_exponent": r.spectrum_exponent,
             "transfer_function": {
                 "mtf_at_nyquist_x": transfer.eval(0.5, 0.0),

@@ -10,10 +10,10 @@ use serde_json::json;
 use eoir::display;
 use eoir::io::output::ProductSet;
 use eoir::io::raster;
-use eoir::processing::wiener::{
-    self, replace_invalid_pixels, ImageStats, NoiseRule, SensorTransfer, IMPULSE_K_SIGMA,
-};
+use eoir::processing::bad_pixels;
+use eoir::processing::wiener::{self, ImageStats, Method, NoiseRule, RestoreMasks, SensorTransfer};
 
+use super::defects::image_defects;
 use super::sensor_args::SensorArgs;
 
 /// What the pixel values of an input image are.
@@ -121,12 +121,18 @@ pub struct RestoreArgs {
     pub input: PathBuf,
     #[command(flatten)]
     pub sensor: SensorArgs,
-    /// Noise-to-signal ratio rule: `auto` (FOI §3.6: noise power from the frequencies the
-    /// optics do not pass) or `model` (the sensor's shot, read and quantisation noise).
+    /// Noise level: `auto` (measured on the image by Immerkær's operator, defects and
+    /// saturated pixels left out) or `model` (the sensor's shot, read and quantisation
+    /// noise at the image's mean level).
     #[arg(long, default_value = "auto", value_parser = ["auto", "model"])]
     pub noise: String,
-    /// A constant noise-to-signal power ratio instead of `--noise`.
-    #[arg(long, conflicts_with = "noise")]
+    /// Filter: `auto` (the least estimated error among Wiener, Wiener–Hunt, a constant NSR
+    /// and the unrestored input, so never worse than the input by that estimate),
+    /// `wiener` (power-law object spectrum) or `wiener-hunt` (Laplacian smoothness prior).
+    #[arg(long, default_value = "auto", value_parser = ["auto", "wiener", "wiener-hunt"])]
+    pub method: String,
+    /// A constant noise-to-signal power ratio instead of `--noise` and `--method`.
+    #[arg(long, conflicts_with_all = ["noise", "method"])]
     pub nsr: Option<f64>,
     /// Black level of a DN image, DN (default: the sensor model's offset plus its dark
     /// and background signal).
@@ -224,32 +230,55 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
         InputKind::Dn => "DN",
         InputKind::Float => args.units.as_str(),
     };
-    let (clean, replaced) =
-        replace_invalid_pixels(image.view(), IMPULSE_K_SIGMA).context("replacing dead pixels")?;
+    let full_scale = (kind == InputKind::Dn).then(|| model.max_dn());
+    let defects = image_defects(&args.input, &image, &sensor, full_scale)?;
+    let replaced = defects.defects.count();
+    let clean = if replaced > 0 {
+        bad_pixels::replace(image.view(), &defects.defects).context("replacing defective pixels")?
+    } else {
+        image.clone()
+    };
     let signal = clean.mapv(|v| v - black);
+    // The sensor model's noise at the image's mean level (DN or electrons).
+    let mean = signal.mean().unwrap_or(0.0);
+    let model_variance = match kind {
+        InputKind::Dn => {
+            let k = model.gain_dn_per_e();
+            let mean_e = (mean / k).max(0.0);
+            Some(model.temporal_noise_dn(mean_e).powi(2) + model.quantisation_noise_dn().powi(2))
+        }
+        InputKind::Float if units == "electrons" => {
+            Some(model.temporal_noise_e(mean.max(0.0)).powi(2))
+        }
+        InputKind::Float => None,
+    };
     let rule = match (args.nsr, args.noise.as_str()) {
         (Some(x), _) => NoiseRule::Constant(x),
-        (None, "model") => {
-            let mean = signal.mean().unwrap_or(0.0);
-            let variance = match kind {
-                InputKind::Dn => {
-                    let k = model.gain_dn_per_e();
-                    let mean_e = (mean / k).max(0.0);
-                    model.temporal_noise_dn(mean_e).powi(2) + model.quantisation_noise_dn().powi(2)
-                }
-                InputKind::Float if units == "electrons" => model.temporal_noise_e(mean.max(0.0)).powi(2),
-                InputKind::Float => bail!(
-                    "--noise model needs DN or electrons to know the noise level; for radiance use --noise auto or --nsr"
-                ),
-            };
-            NoiseRule::Model {
-                noise_variance: variance,
-            }
-        }
+        (None, "model") => match model_variance {
+            Some(v) => NoiseRule::Model { noise_variance: v },
+            None => bail!(
+                "--noise model needs DN or electrons to know the noise level; for radiance use --noise auto or --nsr"
+            ),
+        },
         (None, _) => NoiseRule::Auto,
     };
+    let method = Method::parse(&args.method)?;
+    let noise_mask = defects.defects.union(&defects.saturated)?;
+    let saturated = defects.saturated.clone();
+    let masks = RestoreMasks {
+        noise: Some(&noise_mask),
+        saturated: (saturated.count() > 0).then_some(&saturated),
+    };
     let transfer = SensorTransfer::new(&sensor)?;
-    let r = wiener::wiener_restore(signal.view(), &transfer, rule)?;
+    let r = wiener::restore(signal.view(), &transfer, rule, method, masks)?;
+    let model_sigma = model_variance.map(f64::sqrt);
+    if let (Some(m), Some(s)) = (r.noise_sigma_measured, model_sigma) {
+        if !(0.5..=2.0).contains(&(m / s)) {
+            eprintln!(
+                "warning: the image's own noise ({m:.4} {units} rms, Immerkær) differs from the sensor model's ({s:.4}) by more than 2×: is this the sensor and black level that recorded it?"
+            );
+        }
+    }
     let restored = r.image.mapv(|v| v + black);
     let mtf_nyquist_x = transfer.eval(0.5, 0.0);
     let mtf_nyquist_y = transfer.eval(0.0, 0.5);
@@ -260,12 +289,26 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
         "units": units,
         "black_level_dn": if kind == InputKind::Dn { Some(black) } else { None },
         "pixels_replaced": replaced,
+        "defects": {
+            "source": defects.source,
+            "replaced": replaced,
+            "clusters": defects.clusters,
+            "largest_cluster_px": defects.largest_cluster,
+            "saturated_px": saturated.count(),
+            "saturated_raised_px": r.saturated_raised,
+            "saturated_filled_px": r.saturated_filled,
+        },
         "noise_rule": r.rule,
+        "method": r.method,
+        "method_requested": if args.nsr.is_some() { "constant" } else { args.method.as_str() },
+        "candidates": r.candidates.iter().map(|c| json!({"method": c.name, "parameter": c.parameter, "relative_error": c.relative_risk})).collect::<Vec<_>>(),
+        "sharpness_guard_bins": r.guarded_bins,
         "nsr": match rule { NoiseRule::Constant(x) => json!(x), _ => json!(null) },
         "nsr_median": r.nsr_median,
         "noise_power": r.noise_power,
         "noise_sigma": r.noise_sigma,
-        "noise_bins": r.noise_bins.map(|(n, negligible)| json!({"count": n, "negligible_h": negligible})),
+        "noise_sigma_measured": r.noise_sigma_measured,
+        "noise_sigma_model": model_sigma,
         "object_spectrum_exponent": r.spectrum_exponent,
         "transfer_function": {
             "mtf_at_nyquist_x": mtf_nyquist_x,
@@ -286,8 +329,9 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
         "the input holds values too large for the restoration to be stored",
     )?;
     println!(
-        "{}: Wiener ({}{}), MTF at Nyquist {:.3} (x) {:.3} (y), {} pixels replaced",
+        "{}: {} ({}{}), MTF at Nyquist {:.3} (x) {:.3} (y), {} pixels replaced",
         sensor.name,
+        r.method,
         r.rule,
         match (rule, r.noise_sigma) {
             (NoiseRule::Constant(x), _) => format!(" NSR {x}"),

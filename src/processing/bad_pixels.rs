@@ -392,6 +392,28 @@ pub struct ImageDefects {
     pub residual_sigma: f64,
 }
 
+/// (min, max) of the finite non-candidate pixels within two pixels of the box of rows
+/// `r0..=r1`, columns `c0..=c1` ((+∞, −∞) if there is none).
+fn good_range(
+    image: ArrayView2<f64>,
+    candidate: &Array2<bool>,
+    (r0, r1): (usize, usize),
+    (c0, c1): (usize, usize),
+) -> (f64, f64) {
+    let (rows, cols) = image.dim();
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for i in r0.saturating_sub(2)..=(r1 + 2).min(rows - 1) {
+        for j in c0.saturating_sub(2)..=(c1 + 2).min(cols - 1) {
+            let v = image[[i, j]];
+            if !candidate[[i, j]] && v.is_finite() {
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+    }
+    (lo, hi)
+}
+
 /// 8-connected components of the `true` pixels of `mask`, each as its pixel list.
 fn components(mask: &Array2<bool>) -> Vec<Vec<(usize, usize)>> {
     let (rows, cols) = mask.dim();
@@ -420,6 +442,12 @@ fn components(mask: &Array2<bool>) -> Vec<Vec<(usize, usize)>> {
     out
 }
 
+/// The 8-connected clusters of flagged pixels in `map`, each as its pixel list, in
+/// row-major order of each cluster's first pixel.
+pub fn clusters(map: &BadPixelMap) -> Vec<Vec<(usize, usize)>> {
+    components(map.mask())
+}
+
 /// Sizes (pixels) of the 8-connected clusters of flagged pixels in `map`, in row-major
 /// order of each cluster's first pixel.
 pub fn cluster_sizes(map: &BadPixelMap) -> Vec<usize> {
@@ -444,7 +472,10 @@ pub fn cluster_sizes(map: &BadPixelMap) -> Vec<usize> {
 ///    non-candidate pixels around it (within two pixels of the group) by more than
 ///    `k_sigma` σ: each such pixel is flagged. A larger group at full scale is a clipped
 ///    part of the scene ([`ImageDefects::saturated`]); any other larger group is scene
-///    structure and left alone. Non-finite pixels are always flagged.
+///    structure and left alone, except its pixels at exactly 0 (DN images) whose good
+///    neighbours within two pixels all lie more than `k_sigma` σ above: a dead pixel on a
+///    sharp edge joins the edge's candidates, and is judged on its own. Non-finite pixels
+///    are always flagged.
 /// 3. **Iteration.** The medians are recomputed without the flagged pixels and the test
 ///    repeated (at most three passes) until no pixel is added, so a defect next to a
 ///    defect is judged against good pixels only.
@@ -536,20 +567,22 @@ pub fn find_image_defects(
                     if full_scale.is_some_and(|f| v == f) {
                         saturated[[r, c]] = true;
                     }
+                    // A dead pixel (exactly 0 DN) on a sharp scene edge joins the edge's
+                    // candidates in one large group; judged on its own, it lies below
+                    // every good pixel around it by more than the limit.
+                    if full_scale.is_some() && v == 0.0 && !flagged[[r, c]] {
+                        let lo = good_range(image, &candidate, (r, r), (c, c)).0;
+                        if !(lo.is_finite() && lo > limit) {
+                            continue;
+                        }
+                        flagged[[r, c]] = true;
+                        added += 1;
+                    }
                 }
                 continue;
             }
             // The range of the good pixels around the group.
-            let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-            for i in r0.saturating_sub(2)..=(r1 + 2).min(rows - 1) {
-                for j in c0.saturating_sub(2)..=(c1 + 2).min(cols - 1) {
-                    let v = image[[i, j]];
-                    if !candidate[[i, j]] && v.is_finite() {
-                        lo = lo.min(v);
-                        hi = hi.max(v);
-                    }
-                }
-            }
+            let (lo, hi) = good_range(image, &candidate, (r0, r1), (c0, c1));
             for &(r, c) in &comp {
                 let v = image[[r, c]];
                 let bad = !v.is_finite()

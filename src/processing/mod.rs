@@ -12,8 +12,12 @@
 //! - [`netd`]: analytic and measured noise-equivalent temperature difference.
 //! - [`temperature`]: DN ↔ radiance calibration and apparent-temperature images,
 //!   docs/design.md §4.9.
-//! - [`wiener`]: Wiener restoration with the sensor's own transfer function on the
-//!   detector grid (FOI report eq. 3.6).
+//! - [`wiener`]: restoration with the sensor's own transfer function on the detector
+//!   grid: classic Wiener (FOI report eq. 3.6) and Wiener–Hunt (Laplacian prior).
+//! - [`clipped_fill`]: the blurred intensity of small clipped clusters from the PSF's
+//!   wings, filled in before a restoration filter.
+//! - [`restore_rule`]: the estimated error of each restoration filter and the automatic
+//!   choice among them (the input itself included).
 //! - [`edge_mtf`]: ISO 12233 slanted-edge MTF measurement.
 //! - [`noise_estimate`]: the white-noise level of one image (Immerkær 1996).
 //! - [`multi_frame`]: multi-frame restoration of a sequence (register, shift-and-add,
@@ -25,6 +29,7 @@
 //! Frames stored as integers (`Array2<u16>` from an ADC) are converted with [`to_f64`].
 
 pub mod bad_pixels;
+pub mod clipped_fill;
 pub mod edge_mtf;
 pub mod multi_frame;
 pub mod netd;
@@ -32,6 +37,7 @@ pub mod noise_estimate;
 pub mod nuc;
 pub mod photon_transfer;
 pub mod registration;
+pub mod restore_rule;
 pub mod shift_and_add;
 pub mod temperature;
 pub mod wiener;

@@ -1,35 +1,74 @@
-//! Wiener restoration of a recorded frame with the sensor's own transfer function.
+//! Restoration of a recorded frame with the sensor's own transfer function.
 //!
-//! The estimate of the scene sampled on the detector grid is
+//! Every filter here is a regularised inverse on the detector grid,
 //!
 //! ```text
-//! F̂(u,v) = G(u,v) · H(u,v) / (H(u,v)² + NSR(u,v))          (FOI-R--2135--SE eq. 3.6)
+//! F̂(u,v) = G(u,v) · H(u,v) / (H(u,v)² + R(u,v)),    R(0,0) = 0,
 //! ```
 //!
-//! with G the DFT of the recorded image and H the system transfer function (real and
-//! signed: sinc and defocus lobes reverse contrast, so H* = H). The noise-to-signal
-//! power ratio NSR comes from one of three rules ([`NoiseRule`]):
+//! with G the DFT of the recorded image (mirror-padded, below), H the system transfer
+//! function (real and signed: sinc and defocus lobes reverse contrast, so H* = H) and R
+//! the regulariser of the [`Method`]:
 //!
-//! - **auto**: the noise power P_n by the FOI report's rule (§3.6): the mean of the image
-//!   power spectrum `|G|²` over the frequencies at which the transfer function is
-//!   negligible (|H| < [`NEGLIGIBLE_H`]), where the recorded spectrum can only be noise.
-//!   If the detector grid holds no such frequency (an under-sampled camera whose MTF at
-//!   Nyquist is still large), the 5 % of frequencies with the smallest |H| are used
-//!   instead; they still carry some (aliased) signal, so P_n is then over-estimated and
-//!   the restoration errs on the smooth side. The signal side is the object spectrum
-//!   `P_f(ρ)` fitted as for **model** below, and `NSR = P_n / P_f(ρ)`, the Wiener
-//!   filter's definition. (The report's literal per-frequency ratio `P_n/|G(u,v)|²`
-//!   divides by the *image* rather than the object spectrum, which drops a factor H², and
-//!   inherits the periodogram's 100 % scatter: on an engine-made bar scene it restored
-//!   1.1 dB worse than the best constant NSR, the fitted spectrum 0.0–0.1 dB better.)
-//! - **model**: `NSR(u,v) = P_n / P_f(ρ)` with `P_n = N·σ²` the white-noise power of a
-//!   per-pixel variance σ² (the sensor's shot + read + quantisation noise at the image's
-//!   signal level, computed by the caller) in an N-pixel frame, and `P_f(ρ) = A ρ^β` a
-//!   power law fitted (least squares in log–log) to the radially averaged object
-//!   spectrum `(⟨|G|²⟩ − P_n)/⟨H²⟩` over the annuli where the signal clearly exceeds the
-//!   noise. Natural scenes have β ≈ −2 … −3 (van der Schaaf & van Hateren, Vision Res. 36,
-//!   2759 (1996)); the fit finds it from the image.
-//! - **constant**: a fixed NSR.
+//! - **wiener** (FOI-R--2135--SE eq. 3.6): `R = P_n / P_f(ρ)`, the noise-to-signal power
+//!   ratio, with `P_n = N·σ²` the white-noise power per DFT coefficient of the N-pixel
+//!   padded frame and `P_f(ρ) = A ρ^β` a power law fitted (least squares in log–log) to
+//!   the radially averaged object spectrum `(⟨|G|²⟩ − P_n)/⟨H²⟩` over the annuli where
+//!   the signal clearly exceeds the noise (natural scenes have β ≈ −2 … −3; van der Schaaf
+//!   & van Hateren, Vision Res. 36, 2759 (1996)).
+//! - **wiener-hunt** (Hunt 1973, IEEE Trans. Computers C-22, 805; the Tikhonov–Miller
+//!   filter with a smoothness prior): `R = λ·|C(u,v)|²`, `C = 4 − 2cos 2πu − 2cos 2πv`
+//!   the transfer function of the 5-point discrete Laplacian, so rough solutions are
+//!   penalised; λ is the value of least estimated error (below).
+//! - **constant**: `R = NSR` at every frequency but zero (`--nsr`, or, inside the auto
+//!   choice, the NSR of least estimated error).
+//! - **none**: the input unchanged.
+//!
+//! **Noise.** σ is the image's own noise by Immerkær's operator on its unmasked pixels
+//! (rule **auto**, [`crate::processing::noise_estimate`]) or the sensor model's noise at
+//! the image's mean level (rule **model**). (The FOI report's §3.6 rule — the image
+//! power where |H| is negligible — was dropped: a camera whose |H| stays above 0.02 up
+//! to Nyquist has no such frequency, and the edge's own power was taken for noise.)
+//!
+//! **Estimated error and the automatic choice** ([`restore_rule`]): for `G = H·F + noise`
+//! the filter `W = H/(H² + R)` leaves the expected squared error
+//! `(W H − 1)² |F|² + W² P_n` at each frequency; with `|F|²` estimated from the image
+//! independently of every candidate (per frequency without bias where |H| ≥
+//! [`restore_rule::RISK_MIN_H`], pooled over an annulus below), the sum over the
+//! frequencies estimates the restoration's squared error against the unblurred scene
+//! (Parseval; Stein's unbiased risk estimate for a filter diagonal in frequency). λ
+//! (Wiener–Hunt) and the constant NSR minimise it over ten values per decade from 1e−10
+//! to 1e4; **auto** returns whichever of wiener, wiener-hunt, constant and **none** has
+//! the least estimate — the input itself when no filter is expected to improve on it.
+//! Every candidate and its error relative to the input's
+//! ([`restore_rule::Candidate::relative_risk`]) is reported.
+//!
+//! **Noise power of the padded frame.** The pads hold cross-faded copies of the image,
+//! `w·x_a + (1 − w)·x_b`, whose noise variance is `(w² + (1 − w)²)σ²` (σ² where both taps
+//! are the same pixel), so the noise power per DFT coefficient of the padded frame is
+//! `P_n = σ² Σ_pixels v = σ² (Σ_j v_j)(Σ_k v_k)` (Parseval; the taps are separable),
+//! not `N σ²`. This is the noise power of the error estimate; the classic Wiener filter
+//! keeps `P_n = N σ²` for its spectrum fit and NSR.
+//!
+//! **Sharpness guard.** Wherever the sensor passes a frequency at |H| ≥ ½, R is lowered
+//! to at most |H|(1 − |H|), so the restored transfer function `H²/(H² + R)` is at least
+//! |H| there: a restoration never makes the image blurrier than the input at the
+//! frequencies the input still resolves (in particular at its MTF50). The constant rule
+//! given by the user is applied as given.
+//!
+//! **DC.** The zero-frequency coefficient passes unchanged: R(0,0) = 0 for every filter
+//! (the constant NSR included) and H(0,0) = 1 (checked), so its gain `H/(H² + R)` is
+//! exactly 1 and the mean of the *padded* frame is kept exactly. The mean of the cropped
+//! output differs from the input's only by what the filter moves between the image and
+//! its pads (under 0.1 % in the tests; `restore::restoration_of_a_bar_scene…`). The
+//! zero frequency is left out of the error estimate (every candidate treats it alike).
+//!
+//! **Masks** ([`RestoreMasks`]): dead, hot, stuck and saturated pixels are left out of the
+//! noise estimate; defects must be replaced before filtering (the caller does so,
+//! [`crate::processing::bad_pixels::find_image_defects`]); saturated pixels keep their
+//! clipped value as input, and after filtering any saturated pixel the filter brought
+//! below its recorded value is raised back to it (the scene there is at least that
+//! bright).
 //!
 //! Boundaries: the DFT is circular, so the frame is extended on every side by its own
 //! mirror image and the two mirrors are cross-faded with a raised cosine across the pad
@@ -48,15 +87,13 @@ use num_complex::Complex64;
 use crate::error::{Error, Result};
 use crate::imaging::fft::RealFft2;
 use crate::imaging::next_fast_len;
+use crate::processing::bad_pixels::BadPixelMap;
+use crate::processing::clipped_fill::fill_clipped;
+use crate::processing::noise_estimate::immerkaer_sigma;
+use crate::processing::restore_rule::{self, guard, Measured};
+pub use crate::processing::restore_rule::{Candidate, Method};
 use crate::radiometry::planck_photon_radiance;
 use crate::sensor::{FrequencyGrid, Sensor, SystemOtf};
-
-/// |H| below which the transfer function is "negligible" for the auto noise rule.
-pub const NEGLIGIBLE_H: f64 = 0.02;
-
-/// Fraction of the frequencies (smallest |H|) used for the auto noise power when no
-/// frequency has a negligible |H|.
-pub const FALLBACK_NOISE_FRACTION: f64 = 0.05;
 
 /// Number of wavelengths at which the band-weighted transfer function is sampled.
 pub const SPECTRAL_SAMPLES: usize = 48;
@@ -67,6 +104,14 @@ pub trait DetectorTransfer: Sync {
     /// frame (shape `[rows, cols/2 + 1]`, the layout of [`FrequencyGrid::real_fft`] with
     /// unit sample spacing).
     fn on_grid(&self, rows: usize, cols: usize) -> Result<Array2<f64>>;
+
+    /// Whether one transfer function describes the whole image (true unless overridden).
+    /// A colour mosaic (CFA) is not shift-invariant: its colour pattern is imposed after
+    /// the optics, so dividing by H would amplify the pattern itself; `Method::Auto`
+    /// then returns the input unrestored.
+    fn shift_invariant(&self) -> bool {
+        true
+    }
 }
 
 /// Any `Fn(fx, fy) -> H` (cycles per pixel along columns and rows) is a transfer function.
@@ -98,6 +143,7 @@ pub struct SensorTransfer {
     wavelength_um: Vec<f64>,
     weights: Vec<f64>,
     reference_temperature_k: f64,
+    mosaic: bool,
 }
 
 impl SensorTransfer {
@@ -152,6 +198,7 @@ impl SensorTransfer {
             wavelength_um,
             weights,
             reference_temperature_k,
+            mosaic: sensor.config().cfa.is_some(),
         })
     }
 
@@ -166,6 +213,7 @@ impl SensorTransfer {
             wavelength_um: self.wavelength_um.clone(),
             weights: self.weights.clone(),
             reference_temperature_k: self.reference_temperature_k,
+            mosaic: self.mosaic,
         })
     }
 
@@ -206,22 +254,38 @@ impl DetectorTransfer for SensorTransfer {
         }
         Ok(acc)
     }
+
+    fn shift_invariant(&self) -> bool {
+        !self.mosaic
+    }
 }
 
-/// How the noise-to-signal ratio of the Wiener filter is chosen.
+/// Where the white-noise level of the Wiener and Wiener–Hunt filters comes from.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum NoiseRule {
-    /// NSR(u,v) = P_n / P_f(ρ), P_n the mean of |G|² where |H| is negligible (FOI report
-    /// §3.6) and P_f a power law fitted to the image's object spectrum.
+    /// The per-pixel σ measured on the image itself by Immerkær's operator on its
+    /// unmasked pixels ([`crate::processing::noise_estimate::immerkaer_sigma`]).
     Auto,
-    /// NSR(u,v) = N·σ² / P_f(ρ), σ² the per-pixel noise variance in image units and P_f
-    /// a power law fitted to the image's object spectrum.
+    /// σ² given by the caller (the sensor's shot + read + quantisation noise at the
+    /// image's signal level), image units squared.
     Model {
         /// Per-pixel noise variance, image units squared.
         noise_variance: f64,
     },
-    /// A constant NSR at every frequency.
+    /// A constant NSR at every frequency but zero (the classic constant-NSR Wiener
+    /// filter; no noise level, no choice of method).
     Constant(f64),
+}
+
+/// Pixel masks a restoration honours.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RestoreMasks<'a> {
+    /// Pixels left out of the noise estimate (dead, hot, stuck, saturated); they must
+    /// already hold finite values (replaced, or the clipped level).
+    pub noise: Option<&'a BadPixelMap>,
+    /// Saturated pixels: the scene there is at least the recorded value, so the result
+    /// is raised back to the recorded value wherever the filter brought it lower.
+    pub saturated: Option<&'a BadPixelMap>,
 }
 
 /// What a restoration did.
@@ -229,19 +293,33 @@ pub enum NoiseRule {
 pub struct Restoration {
     /// The restored image, the input's size and units.
     pub image: Array2<f64>,
-    /// The rule's name: `auto`, `model` or `constant`.
+    /// The noise rule's name: `auto`, `model` or `constant`.
     pub rule: &'static str,
-    /// Noise power per DFT coefficient of the padded frame (auto and model), image units².
+    /// The filter applied: `wiener`, `wiener-hunt`, `constant` or `none`.
+    pub method: &'static str,
+    /// Noise power per DFT coefficient of the padded frame, `σ²·Σv` (module
+    /// documentation), image units² (auto and model rules).
     pub noise_power: Option<f64>,
-    /// Equivalent per-pixel noise standard deviation √(P_n/N), image units (auto, model).
+    /// Per-pixel noise standard deviation used, image units (auto and model rules).
     pub noise_sigma: Option<f64>,
-    /// The constant NSR (constant rule), or the median NSR over the frequencies (others).
+    /// The image's own noise σ by Immerkær's operator, image units (whatever the rule;
+    /// `None` if it could not be estimated).
+    pub noise_sigma_measured: Option<f64>,
+    /// The constant NSR (constant rule), or the median regulariser R over the
+    /// frequencies of the filter applied (0 for `none`).
     pub nsr_median: f64,
     /// The fitted object-spectrum exponent β (auto and model rules).
     pub spectrum_exponent: Option<f64>,
-    /// Number of frequencies the auto rule averaged for P_n, and whether they were the
-    /// negligible-|H| set (`true`) or the smallest-|H| fallback (`false`).
-    pub noise_bins: Option<(usize, bool)>,
+    /// Every filter considered, with its estimated error (auto and model rules).
+    pub candidates: Vec<Candidate>,
+    /// Frequencies (half-plane bins) where the regulariser was lowered so that the
+    /// filter does not attenuate a frequency the sensor passes at ≥ 50 %.
+    pub guarded_bins: usize,
+    /// Pixels raised back to their recorded (saturated) value.
+    pub saturated_raised: usize,
+    /// Clipped pixels whose value the filter saw raised to the fit of the PSF's wings
+    /// around them ([`crate::processing::clipped_fill`]).
+    pub saturated_filled: usize,
     /// Padded FFT frame (rows, cols).
     pub padded_shape: (usize, usize),
 }
@@ -305,6 +383,25 @@ fn pad_image(image: ArrayView2<f64>, ny: usize, nx: usize) -> (Array2<f64>, usiz
     (out, py, px)
 }
 
+/// Σ over the padded frame's pixels of their noise variance in units of the image's
+/// per-pixel variance σ² (module documentation): `(Σ_j v_j)(Σ_k v_k)` over the taps of
+/// [`pad_taps`], `v = w² + (1 − w)²`, or 1 where both taps are one pixel.
+fn pad_noise_factor(rows: usize, cols: usize, ny: usize, nx: usize) -> f64 {
+    let axis = |n: usize, len: usize| -> f64 {
+        pad_taps(n, pad_for(n), len)
+            .iter()
+            .map(|(a, b, w)| {
+                if a == b {
+                    1.0
+                } else {
+                    w * w + (1.0 - w) * (1.0 - w)
+                }
+            })
+            .sum()
+    };
+    axis(rows, ny) * axis(cols, nx)
+}
+
 /// Radial frequency (cycles per pixel) of each half-plane bin of an `ny × nx` real FFT.
 fn radial_frequency(ny: usize, nx: usize) -> Array2<f64> {
     let g = FrequencyGrid::real_fft(ny, nx, 1.0, 1.0);
@@ -321,18 +418,40 @@ fn bin_weight(k: usize, nx: usize) -> f64 {
     }
 }
 
-/// Restores `image` (`[row, col]`, finite values; replace dead pixels and NaN first) with
-/// the Wiener filter of `transfer` and the NSR of `rule`. The output has the input's size
-/// and units; the mean is preserved (H(0) = 1 ⇒ the DC gain is 1/(1 + NSR(0)), and NSR(0)
-/// is set to 0).
+/// Restores `image` with the classic Wiener filter and no masks:
+/// [`restore`]`(image, transfer, rule, Method::Wiener, RestoreMasks::default())`.
 ///
-/// Errors: an empty or non-finite image, a negative or non-finite constant NSR or noise
-/// variance, a transfer function that is not 1 at zero frequency, or (model rule) an
-/// image with too little signal above the noise to fit its spectrum.
+/// Errors: as [`restore`].
 pub fn wiener_restore(
     image: ArrayView2<f64>,
     transfer: &dyn DetectorTransfer,
     rule: NoiseRule,
+) -> Result<Restoration> {
+    restore(
+        image,
+        transfer,
+        rule,
+        Method::Wiener,
+        RestoreMasks::default(),
+    )
+}
+
+/// Restores `image` (`[row, col]`, finite values: replace dead pixels and NaN first) with
+/// the filter `F̂ = G·H/(H² + R)` of `method` (module documentation), the noise level of
+/// `rule`, and the `masks`. The output has the input's size and units. DC: R(0) = 0 for
+/// every method and H(0) = 1, so the zero-frequency gain is exactly 1 and the mean of the
+/// padded frame is kept.
+///
+/// Errors: an empty or non-finite image, masks of another shape, a negative or
+/// non-finite constant NSR or noise variance, a transfer function that is not 1 at zero
+/// frequency, no usable noise estimate (auto rule), or (Wiener and Wiener–Hunt methods)
+/// an image with too little signal above the noise to fit its spectrum.
+pub fn restore(
+    image: ArrayView2<f64>,
+    transfer: &dyn DetectorTransfer,
+    rule: NoiseRule,
+    method: Method,
+    masks: RestoreMasks<'_>,
 ) -> Result<Restoration> {
     let (rows, cols) = image.dim();
     if rows < 2 || cols < 2 {
@@ -349,6 +468,14 @@ pub fn wiener_restore(
             "finite values (replace dead pixels and NaN before restoring)",
         ));
     }
+    for (name, m) in [
+        ("noise mask", masks.noise),
+        ("saturation mask", masks.saturated),
+    ] {
+        if let Some(m) = m {
+            crate::processing::check_shape(name, m.dim(), (rows, cols))?;
+        }
+    }
     match rule {
         NoiseRule::Constant(x) if !(x.is_finite() && x >= 0.0) => {
             return Err(Error::param("nsr", x, "a finite number >= 0"))
@@ -364,13 +491,26 @@ pub fn wiener_restore(
         }
         _ => {}
     }
+    let measured = immerkaer_sigma(image, masks.noise).ok().map(|e| e.sigma);
+    let variance = match rule {
+        NoiseRule::Constant(_) => None,
+        NoiseRule::Model { noise_variance } => Some(noise_variance),
+        NoiseRule::Auto => {
+            let s = measured.ok_or_else(|| {
+                Error::param(
+                    "image",
+                    "too few unmasked pixels",
+                    "an image with unmasked 3 × 3 neighbourhoods to measure the noise (or --noise model, --nsr)",
+                )
+            })?;
+            Some(s * s)
+        }
+    };
     let ny = next_fast_len(rows + 2 * pad_for(rows));
     let nx = next_fast_len(cols + 2 * pad_for(cols));
-    let (mut padded, py, px) = pad_image(image, ny, nx);
     let fft = RealFft2::new(ny, nx);
     let mut spec = Array2::<Complex64>::zeros(fft.spectrum_shape());
     let mut scratch = Vec::new();
-    fft.forward(&mut padded, &mut spec, &mut scratch);
     let h = transfer.on_grid(ny, nx)?;
     if h.dim() != spec.dim() {
         return Err(Error::param(
@@ -386,83 +526,161 @@ pub fn wiener_restore(
             "1 (a normalised transfer function)",
         ));
     }
-    let power = spec.mapv(|g| g.norm_sqr());
-    let npix = (ny * nx) as f64;
-    let mut noise_power = None;
-    let mut exponent = None;
-    let mut noise_bins = None;
-    // NSR per half-plane bin.
-    let nsr: Array2<f64> = match rule {
-        NoiseRule::Constant(x) => Array2::from_elem(spec.dim(), x),
-        NoiseRule::Auto => {
-            let (pn, count, negligible) = auto_noise_power(&power, &h, nx);
-            noise_power = Some(pn);
-            noise_bins = Some((count, negligible));
-            let rho = radial_frequency(ny, nx);
-            let (a, beta) = fit_object_spectrum(&power, &h, &rho, pn, nx)?;
-            exponent = Some(beta);
-            rho.mapv(|r| pn / (a * r.powf(beta)))
+    // Small clipped clusters: their blurred values estimated from the PSF's wings
+    // (processing::clipped_fill), so that the filter does not see a clipped plateau.
+    let (filled, saturated_filled) = match masks.saturated {
+        Some(m) if m.count() > 0 => {
+            let mut hs = h.mapv(|v| Complex64::new(v, 0.0));
+            let mut psf = Array2::<f64>::zeros((ny, nx));
+            fft.inverse(&mut hs, &mut psf, &mut scratch);
+            let at = |dy: isize, dx: isize| {
+                psf[[
+                    dy.rem_euclid(ny as isize) as usize,
+                    dx.rem_euclid(nx as isize) as usize,
+                ]]
+            };
+            fill_clipped(image, m, masks.noise, at)?
         }
-        NoiseRule::Model { noise_variance } => {
-            let pn = npix * noise_variance;
-            noise_power = Some(pn);
+        _ => (image.to_owned(), 0),
+    };
+    let (mut padded, py, px) = pad_image(filled.view(), ny, nx);
+    fft.forward(&mut padded, &mut spec, &mut scratch);
+    let npix = pad_noise_factor(rows, cols, ny, nx);
+    let mut exponent = None;
+    let mut candidates = Vec::new();
+    let (name, reg): (&'static str, Option<Array2<f64>>) = match (rule, variance) {
+        (NoiseRule::Constant(x), _) => ("constant", Some(Array2::from_elem(spec.dim(), x))),
+        (_, None) => unreachable_rule()?,
+        (_, Some(var)) => {
+            // The error estimate takes the padded frame's own noise power; the classic
+            // Wiener filter keeps its definition `P_n = N·σ²` (N the padded frame's
+            // pixels) for its spectrum fit and NSR, as before the automatic rule.
+            let pn = npix * var;
+            let pn_wiener = (ny * nx) as f64 * var;
+            let power = spec.mapv(|g| g.norm_sqr());
             let rho = radial_frequency(ny, nx);
-            let (a, beta) = fit_object_spectrum(&power, &h, &rho, pn, nx)?;
-            exponent = Some(beta);
-            rho.mapv(|r| pn / (a * r.powf(beta)))
+            let fit = match fit_object_spectrum(&power, &h, &rho, pn_wiener, nx) {
+                Err(e) if method == Method::Wiener => return Err(e),
+                fit => fit.ok(),
+            };
+            exponent = fit.map(|(_, beta)| beta);
+            let wiener_r = |j: usize, k: usize| match fit {
+                Some((a, beta)) => pn_wiener / (a * rho[[j, k]].powf(beta)),
+                None => f64::INFINITY,
+            };
+            let g = FrequencyGrid::real_fft(ny, nx, 1.0, 1.0);
+            let two_pi = 2.0 * std::f64::consts::PI;
+            let laplacian2 = |j: usize, k: usize| {
+                let c = 4.0 - 2.0 * (two_pi * g.fx[k]).cos() - 2.0 * (two_pi * g.fy[j]).cos();
+                c * c
+            };
+            let measured: Vec<Measured> = power
+                .indexed_iter()
+                .filter(|((j, k), _)| *j != 0 || *k != 0)
+                .map(|((j, k), p)| Measured {
+                    power: *p,
+                    h: h[[j, k]],
+                    rho: rho[[j, k]],
+                    w: bin_weight(k, nx),
+                    c2: laplacian2(j, k),
+                    wiener: wiener_r(j, k),
+                })
+                .collect();
+            let bins = restore_rule::bins(&measured, pn);
+            let mut choice = restore_rule::choose(&bins, pn, method, fit.is_some());
+            if method == Method::Auto && !transfer.shift_invariant() {
+                // A colour mosaic: no filter of one transfer function applies.
+                choice.name = "none";
+                choice.candidates.retain(|c| c.name == "none");
+            }
+            candidates = choice.candidates;
+            let reg = |j: usize, k: usize| -> f64 {
+                let r = match choice.name {
+                    "wiener" => wiener_r(j, k),
+                    "wiener-hunt" => choice.lambda * laplacian2(j, k),
+                    _ => choice.nsr,
+                };
+                guard(r, h[[j, k]])
+            };
+            match choice.name {
+                "none" => ("none", None),
+                name => (
+                    name,
+                    Some(Array2::from_shape_fn(spec.dim(), |(j, k)| reg(j, k))),
+                ),
+            }
         }
     };
-    let mut nsr = nsr;
-    nsr[[0, 0]] = 0.0;
-    let mut finite_nsr: Vec<f64> = nsr.iter().copied().filter(|v| !v.is_nan()).collect();
-    let nsr_median = crate::processing::median_in_place(&mut finite_nsr).unwrap_or(0.0);
-    ndarray::Zip::from(&mut spec)
-        .and(&h)
-        .and(&nsr)
-        .for_each(|g, h, n| {
-            let d = h * h + n;
-            *g *= if d > 0.0 && d.is_finite() { h / d } else { 0.0 };
-        });
-    let mut out = Array2::<f64>::zeros((ny, nx));
-    fft.inverse(&mut spec, &mut out, &mut scratch);
-    let restored = out.slice(s![py..py + rows, px..px + cols]).to_owned();
+    let (image_out, nsr_median, guarded_bins) = match reg {
+        None => (image.to_owned(), 0.0, 0),
+        Some(mut r) => {
+            r[[0, 0]] = 0.0;
+            let guarded_bins = if name == "constant" {
+                0
+            } else {
+                r.iter()
+                    .zip(h.iter())
+                    .filter(|(v, hv)| {
+                        hv.abs() >= 0.5 && **v >= hv.abs() * (1.0 - hv.abs()) && **v > 0.0
+                    })
+                    .count()
+            };
+            let mut finite: Vec<f64> = r.iter().copied().filter(|v| !v.is_nan()).collect();
+            let nsr_median = crate::processing::median_in_place(&mut finite).unwrap_or(0.0);
+            ndarray::Zip::from(&mut spec)
+                .and(&h)
+                .and(&r)
+                .for_each(|g, h, n| {
+                    let d = h * h + n;
+                    *g *= if d > 0.0 && d.is_finite() { h / d } else { 0.0 };
+                });
+            let mut out = Array2::<f64>::zeros((ny, nx));
+            fft.inverse(&mut spec, &mut out, &mut scratch);
+            (
+                out.slice(s![py..py + rows, px..px + cols]).to_owned(),
+                nsr_median,
+                guarded_bins,
+            )
+        }
+    };
+    let mut image_out = image_out;
+    let mut saturated_raised = 0;
+    if let Some(m) = masks.saturated {
+        for (r, c) in m.positions() {
+            if image_out[[r, c]] < image[[r, c]] {
+                image_out[[r, c]] = image[[r, c]];
+                saturated_raised += 1;
+            }
+        }
+    }
     Ok(Restoration {
-        image: restored,
+        image: image_out,
         rule: match rule {
             NoiseRule::Auto => "auto",
             NoiseRule::Model { .. } => "model",
             NoiseRule::Constant(_) => "constant",
         },
-        noise_power,
-        noise_sigma: noise_power.map(|p| (p / npix).sqrt()),
+        method: name,
+        noise_power: variance.map(|v| npix * v),
+        noise_sigma: variance.map(f64::sqrt),
+        noise_sigma_measured: measured,
         nsr_median,
         spectrum_exponent: exponent,
-        noise_bins,
+        candidates,
+        guarded_bins,
+        saturated_raised,
+        saturated_filled,
         padded_shape: (ny, nx),
     })
 }
 
-/// The auto rule's noise power: the (multiplicity-weighted) mean of |G|² over the bins
-/// with |H| < [`NEGLIGIBLE_H`], or over the [`FALLBACK_NOISE_FRACTION`] of bins with the
-/// smallest |H| when there are fewer than 1 % such bins. Returns (P_n, bins, negligible).
-fn auto_noise_power(power: &Array2<f64>, h: &Array2<f64>, nx: usize) -> (f64, usize, bool) {
-    let total = power.len();
-    let mut entries: Vec<(f64, f64, f64)> = power
-        .indexed_iter()
-        .filter(|((j, k), _)| *j != 0 || *k != 0)
-        .map(|((j, k), p)| (h[[j, k]].abs(), *p, bin_weight(k, nx)))
-        .collect();
-    let negligible: Vec<&(f64, f64, f64)> = entries.iter().filter(|e| e.0 < NEGLIGIBLE_H).collect();
-    let (set, is_negligible): (Vec<(f64, f64, f64)>, bool) = if negligible.len() * 100 >= total {
-        (negligible.into_iter().copied().collect(), true)
-    } else {
-        entries.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let n = ((total as f64 * FALLBACK_NOISE_FRACTION).ceil() as usize).clamp(1, entries.len());
-        (entries[..n].to_vec(), false)
-    };
-    let wsum: f64 = set.iter().map(|e| e.2).sum();
-    let pn = set.iter().map(|e| e.1 * e.2).sum::<f64>() / wsum;
-    (pn, set.len(), is_negligible)
+/// The (impossible) combination of a noise rule that needs a variance without one.
+fn unreachable_rule() -> Result<(&'static str, Option<Array2<f64>>)> {
+    Err(Error::param(
+        "noise rule",
+        "no noise level",
+        "auto, model or constant",
+    ))
 }
 
 /// Fits `P_f(ρ) = A ρ^β` to the radially averaged object spectrum `(⟨|G|²⟩ − P_n)/⟨H²⟩`
@@ -527,62 +745,26 @@ fn fit_object_spectrum(
 /// Default threshold of [`replace_invalid_pixels`], in robust standard deviations.
 pub const IMPULSE_K_SIGMA: f64 = 6.0;
 
-/// Replaces the pixels a Fourier-domain filter must not see: non-finite values (NaN from
-/// a failed calibration, ±∞) and impulses — dead, hot or stuck pixels, detected as a
-/// value above the maximum (or below the minimum) of its finite 3×3 neighbours by more
-/// than `k_sigma` robust standard deviations of the image's residual from the neighbour
-/// median (median absolute deviation × 1.4826). An edge or a smooth gradient never lies
-/// outside the range of its own neighbours, so scene detail is not flagged. Flagged
-/// pixels are replaced by the median of their valid neighbours
-/// ([`crate::processing::bad_pixels::replace`]). Returns the cleaned image and the count.
+/// Replaces the pixels a Fourier-domain filter must not see: non-finite values and the
+/// clusters of dead, hot and stuck pixels found by
+/// [`crate::processing::bad_pixels::find_image_defects`] (no ADC limit known), each by
+/// the median of its valid neighbours ([`crate::processing::bad_pixels::replace`]).
+/// Returns the cleaned image and the count.
+///
+/// Errors: an empty image, a non-positive `k_sigma`, or no finite pixel.
 pub fn replace_invalid_pixels(
     image: ArrayView2<f64>,
     k_sigma: f64,
 ) -> Result<(Array2<f64>, usize)> {
-    crate::error::require_positive("k_sigma", k_sigma)?;
-    let (rows, cols) = image.dim();
-    if rows == 0 || cols == 0 {
-        return Err(Error::param(
-            "image",
-            format!("{rows} × {cols} pixels"),
-            "a non-empty image",
-        ));
-    }
-    // (min, max, median) of the finite 8-neighbours of every pixel.
-    let stats = Array2::from_shape_fn((rows, cols), |(r, c)| {
-        let mut nb: Vec<f64> = Vec::with_capacity(8);
-        for i in r.saturating_sub(1)..=(r + 1).min(rows - 1) {
-            for j in c.saturating_sub(1)..=(c + 1).min(cols - 1) {
-                let v = image[[i, j]];
-                if (i, j) != (r, c) && v.is_finite() {
-                    nb.push(v);
-                }
-            }
-        }
-        let lo = nb.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = nb.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let med = crate::processing::median_in_place(&mut nb).unwrap_or(f64::NAN);
-        (lo, hi, med)
-    });
-    let mut resid: Vec<f64> = image
-        .iter()
-        .zip(stats.iter())
-        .map(|(v, s)| (v - s.2).abs())
-        .filter(|v| v.is_finite())
-        .collect();
-    let sigma = crate::processing::median_in_place(&mut resid).unwrap_or(0.0)
-        * crate::processing::bad_pixels::MAD_TO_SIGMA;
-    let mask = Array2::from_shape_fn((rows, cols), |(r, c)| {
-        let v = image[[r, c]];
-        let (lo, hi, _) = stats[[r, c]];
-        !v.is_finite() || (sigma > 0.0 && (v > hi + k_sigma * sigma || v < lo - k_sigma * sigma))
-    });
-    let map = crate::processing::bad_pixels::BadPixelMap::from_mask(mask);
-    let count = map.count();
+    let found = crate::processing::bad_pixels::find_image_defects(image, k_sigma, None)?;
+    let count = found.defects.count();
     if count == 0 {
         return Ok((image.to_owned(), 0));
     }
-    Ok((crate::processing::bad_pixels::replace(image, &map)?, count))
+    Ok((
+        crate::processing::bad_pixels::replace(image, &found.defects)?,
+        count,
+    ))
 }
 
 /// Peak signal-to-noise ratio of `estimate` against `truth`, dB: `10 log10(peak² / MSE)`
