@@ -944,6 +944,10 @@ fn mtf<'py>(
     Ok(d)
 }
 
+/// What `psf` computes: wavelength (µm), PSF sample (rad), the cropped PSFs (field, y, x),
+/// centroid x and y (µrad), FWHM (µrad) and Strehl per field point, pupil samples across.
+type PsfTable = (f64, f64, Array3<f64>, [Vec<f64>; 4], Vec<u64>);
+
 /// The pupil PSF at each normalised field height, as `eoir psf` computes it
 /// (docs/wavefront.md): `[optics.wavefront]` and the `[optics]` aperture, at `wavelength_um`
 /// (default: the response-weighted mean wavelength), sampled at λ/(4D). Returns the PSF
@@ -962,60 +966,61 @@ fn psf<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let s = &sensor.inner;
     let hw = half_width_lambda_over_d;
-    let (lambda, sample_rad, images, stats, samples_across) = detached(py, || {
-        let lambda = match wavelength_um {
-            Some(w) => eoir::error::require_positive("wavelength_um", w)?,
-            None => eoir::report::mean_wavelength_um(s)?,
-        };
-        if !(hw.is_finite() && (1.0..=64.0).contains(&hw)) {
-            return Err(eoir::Error::param(
-                "half_width_lambda_over_d",
-                hw,
-                "a number in [1, 64]",
-            ));
-        }
-        if field.is_empty() || field.len() > 16 {
-            return Err(eoir::Error::param(
-                "field",
-                field.len(),
-                "1 to 16 field heights",
-            ));
-        }
-        let mut transfers = Vec::with_capacity(field.len());
-        for &h in &field {
-            transfers.push(eoir::sensor::wavefront::pupil_transfer(
-                s,
-                h,
-                lambda * 1e-6,
-                4,
-            )?);
-        }
-        // λ/D is `padding` = 4 PSF samples; one crop for every field point.
-        let half = transfers
-            .iter()
-            .map(|t| t.psf().nrows() as i64 / 2 - 1)
-            .fold((hw * 4.0).round() as i64, i64::min);
-        let side = (2 * half + 1) as usize;
-        let mut images = Array3::<f64>::zeros((field.len(), side, side));
-        let mut stats: [Vec<f64>; 4] = Default::default();
-        let mut samples_across = Vec::with_capacity(field.len());
-        for (k, t) in transfers.iter().enumerate() {
-            let p = t.psf();
-            let m = p.nrows() as i64;
-            let lo = (m / 2 - half) as usize;
-            images
-                .slice_mut(s![k, .., ..])
-                .assign(&p.slice(s![lo..lo + side, lo..lo + side]));
-            let (cx, cy) = t.centroid_rad();
-            stats[0].push(cx * 1e6);
-            stats[1].push(cy * 1e6);
-            stats[2].push(t.fwhm_rad() * 1e6);
-            stats[3].push(t.strehl());
-            samples_across.push(t.sampling().samples_across as u64);
-        }
-        let sample_rad = transfers[0].psf_sample_rad();
-        Ok((lambda, sample_rad, images, stats, samples_across))
-    })?;
+    let (lambda, sample_rad, images, stats, samples_across) =
+        detached(py, || -> eoir::Result<PsfTable> {
+            let lambda = match wavelength_um {
+                Some(w) => eoir::error::require_positive("wavelength_um", w)?,
+                None => eoir::report::mean_wavelength_um(s)?,
+            };
+            if !(hw.is_finite() && (1.0..=64.0).contains(&hw)) {
+                return Err(eoir::Error::param(
+                    "half_width_lambda_over_d",
+                    hw,
+                    "a number in [1, 64]",
+                ));
+            }
+            if field.is_empty() || field.len() > 16 {
+                return Err(eoir::Error::param(
+                    "field",
+                    field.len(),
+                    "1 to 16 field heights",
+                ));
+            }
+            let mut transfers = Vec::with_capacity(field.len());
+            for &h in &field {
+                transfers.push(eoir::sensor::wavefront::pupil_transfer(
+                    s,
+                    h,
+                    lambda * 1e-6,
+                    4,
+                )?);
+            }
+            // λ/D is `padding` = 4 PSF samples; one crop for every field point.
+            let half = transfers
+                .iter()
+                .map(|t| t.psf().nrows() as i64 / 2 - 1)
+                .fold((hw * 4.0).round() as i64, i64::min);
+            let side = (2 * half + 1) as usize;
+            let mut images = Array3::<f64>::zeros((field.len(), side, side));
+            let mut stats: [Vec<f64>; 4] = Default::default();
+            let mut samples_across = Vec::with_capacity(field.len());
+            for (k, t) in transfers.iter().enumerate() {
+                let p = t.psf();
+                let m = p.nrows() as i64;
+                let lo = (m / 2 - half) as usize;
+                images
+                    .slice_mut(s![k, .., ..])
+                    .assign(&p.slice(s![lo..lo + side, lo..lo + side]));
+                let (cx, cy) = t.centroid_rad();
+                stats[0].push(cx * 1e6);
+                stats[1].push(cy * 1e6);
+                stats[2].push(t.fwhm_rad() * 1e6);
+                stats[3].push(t.strehl());
+                samples_across.push(t.sampling().samples_across as u64);
+            }
+            let sample_rad = transfers[0].psf_sample_rad();
+            Ok((lambda, sample_rad, images, stats, samples_across))
+        })?;
     let d = PyDict::new(py);
     d.set_item("wavelength_um", lambda)?;
     d.set_item("psf_sample_rad", sample_rad)?;
