@@ -577,8 +577,9 @@ def run(
     return ds
 
 
-def mtf(sensor: Sensor, freq_cy_per_mrad, wavelength_um: Optional[float] = None) -> Dict[str, Any]:
-    """The sensor's transfer functions at angular frequencies.
+def mtf(sensor: Sensor, freq_cy_per_mrad, wavelength_um: Optional[float] = None,
+        field: Optional[float] = None) -> Dict[str, Any]:
+    """The sensor's transfer functions at angular frequencies (``eoir mtf``).
 
     Parameters
     ----------
@@ -587,16 +588,96 @@ def mtf(sensor: Sensor, freq_cy_per_mrad, wavelength_um: Optional[float] = None)
         Frequencies, cycles/mrad in object space.
     wavelength_um : float, optional
         Wavelength, µm; default the response-weighted mean.
+    field : float, optional
+        A normalised field height in [0, 1] (``eoir mtf --field``): adds the pupil MTF of
+        ``[optics.wavefront]`` (aperture and wavefront only; diffraction-limited without
+        the section) at that field height.
 
     Returns
     -------
     dict
         ``{"wavelength_um", "freq_cy_per_mrad", <component>..., "system"}``: one array per
         enabled component (``diffraction``, ``detector``, ``jitter``, ...; signed values)
-        and their product.
+        and their product. With ``field``, also ``"field"`` and the arrays
+        ``"pupil_tangential"`` (frequency along the field direction) and
+        ``"pupil_sagittal"`` (across it): the CLI's ``pupil_tangential_H…`` and
+        ``pupil_sagittal_H…`` columns.
+
+    See Also
+    --------
+    psf : the pupil PSF across the field.
     """
     f = _checks.float_list(freq_cy_per_mrad, "freq_cy_per_mrad")
-    return _eoir.mtf(sensor, f, _checks.real("wavelength_um", wavelength_um))
+    return _eoir.mtf(sensor, f, _checks.real("wavelength_um", wavelength_um),
+                     _checks.real("field", field))
+
+
+def psf(sensor: Sensor, field=(0.0, 0.5, 0.7, 1.0), wavelength_um: Optional[float] = None,
+        half_width_lambda_over_d: float = 12.0):
+    """The pupil PSF across the field (``eoir psf``).
+
+    The PSF of the ``[optics]`` aperture (diameter ``focal_length_m / f_number``, central
+    obscuration) and the ``[optics.wavefront]`` wavefront and spider vanes at each field
+    height, sampled at λ/(4D); diffraction-limited when the sensor has no
+    ``[optics.wavefront]``. The numbers are those of the CLI's ``psf.json``. Guide:
+    docs/wavefront.md.
+
+    Parameters
+    ----------
+    sensor : Sensor
+    field : float or sequence of float, default (0, 0.5, 0.7, 1)
+        Normalised field heights H in [0, 1] (1 to 16); the field lies along ``y``.
+    wavelength_um : float, optional
+        Wavelength, µm; default the response-weighted mean.
+    half_width_lambda_over_d : float, default 12
+        Half-width of each picture, λ/D, in [1, 64].
+
+    Returns
+    -------
+    xarray.Dataset
+        ``psf`` (``field``, ``y``, ``x``): the PSF samples, unit sum over the engine's full
+        grid (the crop holds slightly less), ``y`` the tangential axis (towards larger
+        field heights), ``x`` the sagittal one. Coordinates ``field`` (H), ``y`` and ``x``
+        (mrad from the chief ray's paraxial image point, the grid centre) and
+        ``y_lambda_over_d``, ``x_lambda_over_d``. Per field point: ``centroid_x_urad``,
+        ``centroid_y_urad``, ``fwhm_urad`` (area-equivalent: the diameter of the disc whose
+        area is the area above half maximum), ``strehl`` (peak over the unaberrated peak on
+        the grid, a lower bound) and ``samples_across_pupil``. ``attrs``: the sensor,
+        ``wavelength_um``, ``psf_sample_urad``, ``half_width_lambda_over_d``.
+
+    See Also
+    --------
+    mtf : with ``field``, the tangential and sagittal pupil MTF.
+    """
+    h = _checks.float_list(field, "field")
+    d = _eoir.psf(sensor, h, _checks.real("wavelength_um", wavelength_um),
+                  _checks.real("half_width_lambda_over_d", half_width_lambda_over_d, optional=False))
+    xr = _xr.xarray()
+    sample_rad = d["psf_sample_rad"]
+    side = d["psf"].shape[-1]
+    k = np.arange(side, dtype=np.float64) - (side - 1) / 2.0
+    coords = {"field": xr.Variable("field", d["field"], attrs={
+        "units": "1", "long_name": "normalised field height H"})}
+    for ax, name in (("y", "tangential (along the field direction)"), ("x", "sagittal")):
+        coords[ax] = xr.Variable(ax, k * sample_rad * 1e3, attrs={
+            "units": "mrad", "long_name": f"angle from the grid centre, {name}"})
+        coords[ax + "_lambda_over_d"] = xr.Variable(ax, k / 4.0, attrs={
+            "units": "lambda/D", "long_name": f"angle from the grid centre, {name}, in λ/D"})
+    per_field = {
+        "centroid_x_urad": ("urad", "PSF centroid, sagittal"),
+        "centroid_y_urad": ("urad", "PSF centroid, tangential"),
+        "fwhm_urad": ("urad", "area-equivalent full width at half maximum"),
+        "strehl": ("1", "Strehl ratio (grid peak over the unaberrated grid peak)"),
+        "samples_across_pupil": ("1", "pupil samples across the diameter"),
+    }
+    data_vars = {"psf": xr.Variable(("field", "y", "x"), d["psf"], attrs={
+        "units": "1", "long_name": "pupil PSF, unit sum over the full grid"})}
+    for name, (units, long_name) in per_field.items():
+        data_vars[name] = xr.Variable("field", d[name], attrs={"units": units, "long_name": long_name})
+    attrs = _xr.base_attrs(sensor)
+    attrs.update(wavelength_um=d["wavelength_um"], psf_sample_urad=sample_rad * 1e6,
+                 half_width_lambda_over_d=float(half_width_lambda_over_d))
+    return xr.Dataset(data_vars, coords=coords, attrs=attrs)
 
 
 _SCENE_INTS = ("rows", "cols", "oversampling", "bands", "seed")

@@ -865,14 +865,18 @@ fn write_cube(
 
 /// The sensor's transfer functions along one frequency axis: each enabled component and
 /// their product `system` (signed), at `wavelength_um` (default: the response-weighted mean
-/// wavelength). Frequencies are angular, cycles/mrad in object space.
+/// wavelength). Frequencies are angular, cycles/mrad in object space. With `field` (a
+/// normalised field height in [0, 1]), also the pupil MTF of `[optics.wavefront]` along the
+/// field direction (`pupil_tangential`) and across it (`pupil_sagittal`), as the columns
+/// `eoir mtf --field` adds (docs/wavefront.md).
 #[pyfunction]
-#[pyo3(signature = (sensor, freq_cy_per_mrad, wavelength_um=None))]
+#[pyo3(signature = (sensor, freq_cy_per_mrad, wavelength_um=None, field=None))]
 fn mtf<'py>(
     py: Python<'py>,
     sensor: &PySensor,
     freq_cy_per_mrad: Vec<f64>,
     wavelength_um: Option<f64>,
+    field: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let s = &sensor.inner;
     let (lambda, columns) = guarded(|| {
@@ -906,14 +910,127 @@ fn mtf<'py>(
                 .map(|f| otf.evaluate(f * 1e3, 0.0, lambda))
                 .collect(),
         ));
+        if let Some(h) = field {
+            // As `eoir mtf --field`: padding 2, frequency along y (the field direction) for
+            // the tangential curve, along x for the sagittal one.
+            let t = eoir::sensor::wavefront::pupil_transfer(s, h, lambda * 1e-6, 2)?;
+            let along = |tangential: bool| -> Vec<f64> {
+                freq_cy_per_mrad
+                    .iter()
+                    .map(|&f| {
+                        let f = f * 1e3;
+                        if tangential {
+                            t.at_cy_per_rad(0.0, f).norm()
+                        } else {
+                            t.at_cy_per_rad(f, 0.0).norm()
+                        }
+                    })
+                    .collect()
+            };
+            columns.push(("pupil_tangential".into(), along(true)));
+            columns.push(("pupil_sagittal".into(), along(false)));
+        }
         Ok((lambda, columns))
     })?;
     let d = PyDict::new(py);
     d.set_item("wavelength_um", lambda)?;
     d.set_item("freq_cy_per_mrad", freq_cy_per_mrad.into_pyarray(py))?;
+    if let Some(h) = field {
+        d.set_item("field", h)?;
+    }
     for (n, v) in columns {
         d.set_item(n, v.into_pyarray(py))?;
     }
+    Ok(d)
+}
+
+/// What `psf` computes: wavelength (µm), PSF sample (rad), the cropped PSFs (field, y, x),
+/// centroid x and y (µrad), FWHM (µrad) and Strehl per field point, pupil samples across.
+type PsfTable = (f64, f64, Array3<f64>, [Vec<f64>; 4], Vec<u64>);
+
+/// The pupil PSF at each normalised field height, as `eoir psf` computes it
+/// (docs/wavefront.md): `[optics.wavefront]` and the `[optics]` aperture, at `wavelength_um`
+/// (default: the response-weighted mean wavelength), sampled at λ/(4D). Returns the PSF
+/// pictures (field, y, x) cropped to ±`half_width_lambda_over_d` λ/D around the grid centre
+/// (unit sum over the full grid; y is the tangential axis, increasing with the row), the
+/// sample in rad, and the centroid (µrad), FWHM (µrad), Strehl ratio and pupil samples per
+/// field point, the numbers `psf.json` holds.
+#[pyfunction]
+#[pyo3(signature = (sensor, field, wavelength_um=None, half_width_lambda_over_d=12.0))]
+fn psf<'py>(
+    py: Python<'py>,
+    sensor: &PySensor,
+    field: Vec<f64>,
+    wavelength_um: Option<f64>,
+    half_width_lambda_over_d: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let s = &sensor.inner;
+    let hw = half_width_lambda_over_d;
+    let (lambda, sample_rad, images, stats, samples_across) =
+        detached(py, || -> eoir::Result<PsfTable> {
+            let lambda = match wavelength_um {
+                Some(w) => eoir::error::require_positive("wavelength_um", w)?,
+                None => eoir::report::mean_wavelength_um(s)?,
+            };
+            if !(hw.is_finite() && (1.0..=64.0).contains(&hw)) {
+                return Err(eoir::Error::param(
+                    "half_width_lambda_over_d",
+                    hw,
+                    "a number in [1, 64]",
+                ));
+            }
+            if field.is_empty() || field.len() > 16 {
+                return Err(eoir::Error::param(
+                    "field",
+                    field.len(),
+                    "1 to 16 field heights",
+                ));
+            }
+            let mut transfers = Vec::with_capacity(field.len());
+            for &h in &field {
+                transfers.push(eoir::sensor::wavefront::pupil_transfer(
+                    s,
+                    h,
+                    lambda * 1e-6,
+                    4,
+                )?);
+            }
+            // λ/D is `padding` = 4 PSF samples; one crop for every field point.
+            let half = transfers
+                .iter()
+                .map(|t| t.psf().nrows() as i64 / 2 - 1)
+                .fold((hw * 4.0).round() as i64, i64::min);
+            let side = (2 * half + 1) as usize;
+            let mut images = Array3::<f64>::zeros((field.len(), side, side));
+            let mut stats: [Vec<f64>; 4] = Default::default();
+            let mut samples_across = Vec::with_capacity(field.len());
+            for (k, t) in transfers.iter().enumerate() {
+                let p = t.psf();
+                let m = p.nrows() as i64;
+                let lo = (m / 2 - half) as usize;
+                images
+                    .slice_mut(s![k, .., ..])
+                    .assign(&p.slice(s![lo..lo + side, lo..lo + side]));
+                let (cx, cy) = t.centroid_rad();
+                stats[0].push(cx * 1e6);
+                stats[1].push(cy * 1e6);
+                stats[2].push(t.fwhm_rad() * 1e6);
+                stats[3].push(t.strehl());
+                samples_across.push(t.sampling().samples_across as u64);
+            }
+            let sample_rad = transfers[0].psf_sample_rad();
+            Ok((lambda, sample_rad, images, stats, samples_across))
+        })?;
+    let d = PyDict::new(py);
+    d.set_item("wavelength_um", lambda)?;
+    d.set_item("psf_sample_rad", sample_rad)?;
+    d.set_item("field", field.into_pyarray(py))?;
+    d.set_item("psf", images.into_pyarray(py))?;
+    let names = ["centroid_x_urad", "centroid_y_urad", "fwhm_urad", "strehl"];
+    for (n, v) in names.into_iter().zip(stats) {
+        d.set_item(n, v.into_pyarray(py))?;
+    }
+    d.set_item("samples_across_pupil", samples_across.into_pyarray(py))?;
     Ok(d)
 }
 
@@ -1756,6 +1873,7 @@ fn _eoir(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(read_cube, m)?)?;
     m.add_function(wrap_pyfunction!(write_cube, m)?)?;
     m.add_function(wrap_pyfunction!(mtf, m)?)?;
+    m.add_function(wrap_pyfunction!(psf, m)?)?;
     m.add_function(wrap_pyfunction!(scene, m)?)?;
     m.add_function(wrap_pyfunction!(covering_params, m)?)?;
     m.add_class::<PyNuc>()?;
