@@ -914,21 +914,10 @@ fn mtf<'py>(
             // As `eoir mtf --field`: padding 2, frequency along y (the field direction) for
             // the tangential curve, along x for the sagittal one.
             let t = eoir::sensor::wavefront::pupil_transfer(s, h, lambda * 1e-6, 2)?;
-            let along = |tangential: bool| -> Vec<f64> {
-                freq_cy_per_mrad
-                    .iter()
-                    .map(|&f| {
-                        let f = f * 1e3;
-                        if tangential {
-                            t.at_cy_per_rad(0.0, f).norm()
-                        } else {
-                            t.at_cy_per_rad(f, 0.0).norm()
-                        }
-                    })
-                    .collect()
-            };
-            columns.push(("pupil_tangential".into(), along(true)));
-            columns.push(("pupil_sagittal".into(), along(false)));
+            let f_cy_per_rad: Vec<f64> = freq_cy_per_mrad.iter().map(|f| f * 1e3).collect();
+            let (tan, sag) = t.tangential_sagittal_cy_per_rad(&f_cy_per_rad);
+            columns.push(("pupil_tangential".into(), tan));
+            columns.push(("pupil_sagittal".into(), sag));
         }
         Ok((lambda, columns))
     })?;

@@ -52,21 +52,8 @@ pub fn mtf(args: MtfArgs) -> Result<()> {
         let t = eoir::sensor::wavefront::pupil_transfer(&config, h, wavelength_um * 1e-6, 2)
             .with_context(|| format!("--field {h}"))?;
         // Frequency along the field direction (tangential) and across it (sagittal).
-        let along = |tangential: bool| -> Vec<f64> {
-            curves
-                .freq_cy_per_mrad
-                .iter()
-                .map(|&f| {
-                    let f = f * 1e3;
-                    if tangential {
-                        t.at_cy_per_rad(0.0, f).norm()
-                    } else {
-                        t.at_cy_per_rad(f, 0.0).norm()
-                    }
-                })
-                .collect()
-        };
-        let (tan, sag) = (along(true), along(false));
+        let f_cy_per_rad: Vec<f64> = curves.freq_cy_per_mrad.iter().map(|f| f * 1e3).collect();
+        let (tan, sag) = t.tangential_sagittal_cy_per_rad(&f_cy_per_rad);
         curves.columns.push((format!("pupil_tangential_H{h}"), tan));
         curves.columns.push((format!("pupil_sagittal_H{h}"), sag));
     }

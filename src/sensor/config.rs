@@ -769,7 +769,7 @@ impl SensorConfig {
 }
 
 /// Prefixes the field of an [`Error::InvalidParameter`] with `section.`.
-fn prefix_field(section: &str, e: Error) -> Error {
+pub(crate) fn prefix_field(section: &str, e: Error) -> Error {
     match e {
         Error::InvalidParameter {
             field,

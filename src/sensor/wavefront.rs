@@ -163,18 +163,7 @@ const PREFIX: &str = "optics.wavefront.";
 
 /// Prefixes the field of a parameter error with `optics.wavefront.`.
 fn named(e: Error) -> Error {
-    match e {
-        Error::InvalidParameter {
-            field,
-            value,
-            expected,
-        } => Error::InvalidParameter {
-            field: format!("{PREFIX}{field}"),
-            value,
-            expected,
-        },
-        other => other,
-    }
+    super::config::prefix_field("optics.wavefront", e)
 }
 
 impl WavefrontConfig {

@@ -333,6 +333,16 @@ impl PupilTransfer {
         self.at_normalised(x, 0.0).norm()
     }
 
+    /// The tangential and sagittal MTFs at angular frequencies `f_cy_per_rad` (cycles/rad
+    /// in object space): |OTF| along the field direction y and across it, x.
+    pub fn tangential_sagittal_cy_per_rad(&self, f_cy_per_rad: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let fc = self.cutoff_cy_per_rad();
+        f_cy_per_rad
+            .iter()
+            .map(|&f| (self.tangential_mtf(f / fc), self.sagittal_mtf(f / fc)))
+            .unzip()
+    }
+
     /// The PSF centroid (x, y), rad, from the sampled PSF.
     pub fn centroid_rad(&self) -> (f64, f64) {
         let m = self.psf.nrows();
