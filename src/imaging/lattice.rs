@@ -108,6 +108,14 @@ pub fn zero_gap(col: &[Complex64]) -> (usize, usize) {
     (a, b)
 }
 
+/// The [`zero_gap`] of every column of a half spectrum held transposed (`spec_t`, columns
+/// of `rows` samples one after another), in column order: what
+/// [`LatticeInverse::sample_common_x`] finds itself when not handed them, computed once
+/// for a spectrum that many frames sample.
+pub fn column_zero_gaps(spec_t: &[Complex64], rows: usize) -> Vec<(usize, usize)> {
+    spec_t.par_chunks(rows.max(1)).map(zero_gap).collect()
+}
+
 /// Samples [`zero_gap`] tests at once.
 const GAP_RUN: usize = 8;
 
@@ -374,7 +382,7 @@ impl LatticeInverse {
     /// samples along x (bin u times `e^{2πi u·x_shift/cols}`, the Nyquist bin of an even
     /// row `cos(π·x_shift)`), of the real frame whose half spectrum, held transposed
     /// (`spec_t[u·rows + v]`), times `per_column` (filled outside each column's zero gap,
-    /// [`zero_gap`]) and `per_row` is the frame's spectrum: the fold along the rows done
+    /// [`zero_gap`]; `gaps`, when given, must be [`column_zero_gaps`] of `spec_t`) and `per_row` is the frame's spectrum: the fold along the rows done
     /// on the spectrum, before the column transforms (see the [module documentation](self)).
     /// Equals [`LatticeInverse::sample`] with the same factors, every row starting at
     /// `x_start` and shifted by `x_shift`, to rounding (test). `spec_t` is not changed.
@@ -386,6 +394,7 @@ impl LatticeInverse {
     pub fn sample_common_x(
         &self,
         spec_t: &[Complex64],
+        gaps: Option<&[(usize, usize)]>,
         per_column: Option<ColumnFillOutside<'_>>,
         per_row: Option<&[Complex64]>,
         wanted: &[usize],
@@ -413,8 +422,19 @@ impl LatticeInverse {
         let mut out = Array2::<f64>::zeros((wanted.len(), n_cols));
         let zero = Complex64::new(0.0, 0.0);
         let c = x_start % cols;
-        // The zero gap of every column, once for all residues.
-        let gaps: Vec<(usize, usize)> = spec_t.par_chunks(rows).map(zero_gap).collect();
+        assert!(
+            gaps.is_none_or(|g| g.len() == hc),
+            "LatticeInverse::sample_common_x gaps length"
+        );
+        // The zero gap of every column, once for all residues (or once for the sequence).
+        let found;
+        let gaps = match gaps {
+            Some(g) => g,
+            None => {
+                found = column_zero_gaps(spec_t, rows);
+                &found[..]
+            }
+        };
         let mut folded = vec![zero; hq * my];
         for r in self.residues(wanted) {
             let (alias, ramp) = self.fold_factors(r, per_row);
@@ -800,12 +820,33 @@ mod tests {
             let n = cols / kx - 1;
             let got = li.sample_common_x(
                 &spec,
+                None,
                 Some(&fill_outside),
                 Some(&per_row),
                 &wanted,
                 x_start,
                 x_shift,
                 n,
+            );
+            // The columns' gaps found once beforehand (a sequence's): the same bits.
+            let gaps = column_zero_gaps(&spec, rows);
+            assert!(gaps.iter().any(|g| g.1 > g.0), "{rows}x{cols}: some gap");
+            let cached = li.sample_common_x(
+                &spec,
+                Some(&gaps),
+                Some(&fill_outside),
+                Some(&per_row),
+                &wanted,
+                x_start,
+                x_shift,
+                n,
+            );
+            assert!(
+                cached
+                    .iter()
+                    .zip(&got)
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "{rows}x{cols}: cached gaps"
             );
             for (i, _) in wanted.iter().enumerate() {
                 for j in 0..n {
@@ -818,7 +859,8 @@ mod tests {
                 }
             }
             // Without factors: the frame's own samples.
-            let plain = li.sample_common_x(&spectrum_t(&x), None, None, &wanted, x_start, 0.0, n);
+            let plain =
+                li.sample_common_x(&spectrum_t(&x), None, None, None, &wanted, x_start, 0.0, n);
             for (i, &w) in wanted.iter().enumerate() {
                 for j in 0..n {
                     let want = x[[w, (x_start + j * kx) % cols]];

@@ -400,7 +400,34 @@ impl Imager {
         motion: &FrameMotion,
         scratch: &mut Vec<Complex64>,
     ) -> Result<Array2<f64>> {
-        self.detector_image_moving_within(spectrum, motion, scratch, ROW_POSITION_TOLERANCE_PX)
+        self.moving_image(spectrum, None, motion, scratch, ROW_POSITION_TOLERANCE_PX)
+    }
+
+    /// The zero gaps of `spectrum`'s columns (transposed, as [`Imager::with_spectrum`]
+    /// hands it; [`super::lattice::column_zero_gaps`]), for
+    /// [`Imager::detector_image_moving_with_gaps`]: found once for a sequence whose
+    /// frames all sample the same spectrum instead of once per frame.
+    pub fn spectrum_zero_gaps(&self, spectrum: &[Complex64]) -> Vec<(usize, usize)> {
+        super::lattice::column_zero_gaps(spectrum, self.sampling.y.padded_len)
+    }
+
+    /// [`Imager::detector_image_moving`] with the zero gaps of `spectrum`'s columns found
+    /// beforehand (`gaps`: [`Imager::spectrum_zero_gaps`] of this very `spectrum`), the
+    /// same image to the bit (test).
+    pub fn detector_image_moving_with_gaps(
+        &self,
+        spectrum: &[Complex64],
+        gaps: &[(usize, usize)],
+        motion: &FrameMotion,
+        scratch: &mut Vec<Complex64>,
+    ) -> Result<Array2<f64>> {
+        self.moving_image(
+            spectrum,
+            Some(gaps),
+            motion,
+            scratch,
+            ROW_POSITION_TOLERANCE_PX,
+        )
     }
 
     /// [`Imager::detector_image_moving`] with rows' vertical positions within
@@ -409,6 +436,18 @@ impl Imager {
     pub fn detector_image_moving_within(
         &self,
         spectrum: &[Complex64],
+        motion: &FrameMotion,
+        scratch: &mut Vec<Complex64>,
+        row_tolerance_px: f64,
+    ) -> Result<Array2<f64>> {
+        self.moving_image(spectrum, None, motion, scratch, row_tolerance_px)
+    }
+
+    /// [`Imager::detector_image_moving_within`] with `spectrum`'s column gaps when known.
+    fn moving_image(
+        &self,
+        spectrum: &[Complex64],
+        gaps: Option<&[(usize, usize)]>,
         motion: &FrameMotion,
         scratch: &mut Vec<Complex64>,
         row_tolerance_px: f64,
@@ -434,6 +473,7 @@ impl Imager {
             if self.sampling.integer {
                 self.sample_rows_integer(
                     spectrum,
+                    gaps,
                     g.blur.as_ref(),
                     &rows,
                     row_tolerance_px,
@@ -492,10 +532,13 @@ impl Imager {
     /// fractional y positions lie within 2·`tolerance_px` (detector pixels) share a column
     /// pass at their middle fraction; every row's x shift is exact. With the detector's
     /// lattice ([`super::lattice`]) one bin reads the spectrum once, blur and phases
-    /// folded in; several bins blur a copy (`scratch`) once and fold it per bin.
+    /// folded in; several bins blur a copy (`scratch`) once and fold it per bin. `gaps`:
+    /// `spectrum`'s column zero gaps if known (used only when `spectrum` itself is folded).
+    #[allow(clippy::too_many_arguments)]
     fn sample_rows_integer(
         &self,
         spectrum: &[Complex64],
+        gaps: Option<&[(usize, usize)]>,
         blur: Option<&WindowPath>,
         rows: &[RowAt],
         tolerance_px: f64,
@@ -525,14 +568,14 @@ impl Imager {
         // The blurred spectrum: the band sum itself when nothing blurs, fused into the fold
         // for a single bin, else a blurred copy shared by the bins.
         let fused = self.lattice.is_some() && bins.len() == 1;
-        let source: &[Complex64] = match blur {
+        let (source, source_gaps): (&[Complex64], _) = match blur {
             Some(path) if !fused => {
                 scratch.clear();
                 scratch.extend_from_slice(spectrum);
                 apply_path_otf(scratch, frame, &self.grid, path);
-                scratch
+                (scratch, None)
             }
-            _ => spectrum,
+            _ => (spectrum, gaps),
         };
         let mut work: Vec<Complex64> = Vec::new();
         for bin in &bins {
@@ -555,6 +598,7 @@ impl Imager {
                     };
                     lattice.sample_common_x(
                         source,
+                        source_gaps,
                         (fused && blur.is_some()).then_some(&fill_outside as _),
                         (s != 0.0).then_some(&ry[..]),
                         &wanted,

@@ -227,16 +227,21 @@ impl ImagingStage {
                 im.with_spectrum(reader, 0, |b, _| progress(done + b), |acc| Ok(acc.to_vec()))?;
             done += s.bands_used;
             add_stats(&mut stats, &s);
-            spectra.push(spec);
+            // Each column's zero gap, found once for every frame that samples `spec`.
+            let gaps = self.motion.as_ref().map(|_| im.spectrum_zero_gaps(&spec));
+            spectra.push((spec, gaps));
         }
         // The mean image of a frame that moved by `moved`.
         let image_moved =
             |moved: Option<FrameMotion>, scratch: &mut Vec<Complex64>| -> Result<Array2<f64>> {
                 let mut planes = Vec::with_capacity(self.imagers.len());
-                for (im, spec) in self.imagers.iter().zip(&spectra) {
-                    planes.push(match moved.as_ref().filter(|m| !m.is_identity()) {
-                        Some(m) => im.detector_image_moving(spec, m, scratch)?,
-                        None => {
+                for (im, (spec, gaps)) in self.imagers.iter().zip(&spectra) {
+                    planes.push(match (moved.as_ref().filter(|m| !m.is_identity()), gaps) {
+                        (Some(m), Some(g)) => {
+                            im.detector_image_moving_with_gaps(spec, g, m, scratch)?
+                        }
+                        (Some(m), None) => im.detector_image_moving(spec, m, scratch)?,
+                        (None, _) => {
                             scratch.clear();
                             scratch.extend_from_slice(spec);
                             im.detector_image_transposed(scratch)
