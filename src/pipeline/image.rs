@@ -228,7 +228,7 @@ impl ImagingStage {
             done += s.bands_used;
             add_stats(&mut stats, &s);
             // Each column's zero gap, found once for every frame that samples `spec`.
-            let gaps = self.motion.as_ref().map(|_| im.spectrum_zero_gaps(&spec));
+            let gaps = im.spectrum_zero_gaps(&spec);
             spectra.push((spec, gaps));
         }
         // The mean image of a frame that moved by `moved`.
@@ -236,12 +236,9 @@ impl ImagingStage {
             |moved: Option<FrameMotion>, scratch: &mut Vec<Complex64>| -> Result<Array2<f64>> {
                 let mut planes = Vec::with_capacity(self.imagers.len());
                 for (im, (spec, gaps)) in self.imagers.iter().zip(&spectra) {
-                    planes.push(match (moved.as_ref().filter(|m| !m.is_identity()), gaps) {
-                        (Some(m), Some(g)) => {
-                            im.detector_image_moving_with_gaps(spec, g, m, scratch)?
-                        }
-                        (Some(m), None) => im.detector_image_moving(spec, m, scratch)?,
-                        (None, _) => {
+                    planes.push(match moved.as_ref().filter(|m| !m.is_identity()) {
+                        Some(m) => im.detector_image_moving_with_gaps(spec, gaps, m, scratch)?,
+                        None => {
                             scratch.clear();
                             scratch.extend_from_slice(spec);
                             im.detector_image_transposed(scratch)
