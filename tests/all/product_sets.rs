@@ -309,7 +309,7 @@ fn signals_at_random_moments_leave_the_old_set_or_the_new_one() {
 }
 
 #[test]
-fn characterize_simulate_leaves_nothing_when_interrupted() {
+fn characterize_simulate_leaves_the_whole_set_or_nothing_when_interrupted() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let args = os(&strings(&[
@@ -345,16 +345,17 @@ fn characterize_simulate_leaves_nothing_when_interrupted() {
             "trial {trial}: litter {:?}",
             litter(d)
         );
-        if o.code == Some(0) {
-            assert_eq!(listing(&d.join("sim")), complete, "trial {trial}");
-            std::fs::remove_dir_all(d.join("sim")).unwrap();
-        } else {
-            assert!(
-                !d.join("sim").exists(),
-                "trial {trial}: exit {:?} left {:?}",
-                o.code,
-                listing(&d.join("sim")).keys().take(3).collect::<Vec<_>>()
+        // Whatever the exit status, the folder holds the complete set or nothing: a
+        // signal that lands after the set was moved into place (the handler then says
+        // "no unfinished outputs to remove" and exits 128 + signal) leaves it whole.
+        if o.code == Some(0) || d.join("sim").exists() {
+            assert_eq!(
+                listing(&d.join("sim")),
+                complete,
+                "trial {trial}: exit {:?} left an incomplete set",
+                o.code
             );
+            std::fs::remove_dir_all(d.join("sim")).unwrap();
         }
     }
 }
