@@ -8,9 +8,17 @@ mod cli;
 
 use cli::{characterize, edge_mtf, mtf, nuc, restore, run, scene, sensors};
 
+/// `eoir --version`: the version and the optional features compiled in, so a user (and
+/// the tests run against a build with `--features hdf5`) can tell which build this is.
+const LONG_VERSION: &str = if cfg!(feature = "hdf5") {
+    concat!(env!("CARGO_PKG_VERSION"), " (optional features: hdf5)")
+} else {
+    concat!(env!("CARGO_PKG_VERSION"), " (optional features: none)")
+};
+
 /// eoir — turns synthetic hyperspectral radiance into the imagery a real EO/IR camera records.
 #[derive(Debug, Parser)]
-#[command(name = "eoir", version, about, long_about = None)]
+#[command(name = "eoir", version, long_version = LONG_VERSION, about, long_about = None)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

@@ -186,7 +186,7 @@ fn run_writes_every_product_and_the_report() {
     ] {
         assert!(out.join(f).exists(), "{f} missing");
     }
-    if cfg!(feature = "hdf5") {
+    if super::common::cli_has_hdf5() {
         assert!(out.join("products.h5").exists(), "products.h5 missing");
     }
     let report: serde_json::Value =

@@ -54,6 +54,22 @@ pub fn spawn_limited_with(dir: &Path, args: &[OsString], before: &str) -> Child 
         .expect("spawning eoir")
 }
 
+/// Whether the `eoir` under test was built with the `hdf5` feature (its `--version` says),
+/// so these CLI tests check `products.h5` against whichever build they run: CI runs them
+/// once against the default build and once against `--features hdf5` (`.ci/run`).
+pub fn cli_has_hdf5() -> bool {
+    static HAS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *HAS.get_or_init(|| {
+        let o = Command::new(env!("CARGO_BIN_EXE_eoir"))
+            .arg("--version")
+            .output()
+            .expect("running eoir --version");
+        let v = String::from_utf8_lossy(&o.stdout);
+        assert!(v.contains("optional features:"), "eoir --version: {v}");
+        v.contains("hdf5")
+    })
+}
+
 pub fn finish(child: Child, what: &str) -> Outcome {
     finish_within(child, what, HANG_AFTER)
 }

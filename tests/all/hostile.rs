@@ -508,7 +508,7 @@ fn sigint_while_writing_a_sequence_leaves_the_old_set_or_the_complete_new_one() 
     assert_eq!(
         old.len(),
         // + the set's list `.eoir-products-run`; + products.h5 with HDF5
-        150 * 8 + 11 + usize::from(cfg!(feature = "hdf5")),
+        150 * 8 + 11 + usize::from(super::common::cli_has_hdf5()),
         "{:?}",
         old.keys().take(5).collect::<Vec<_>>()
     );
@@ -524,7 +524,7 @@ fn sigint_while_writing_a_sequence_leaves_the_old_set_or_the_complete_new_one() 
         (400, libc::SIGTERM),
         (1100, libc::SIGINT),
     ];
-    if cfg!(feature = "hdf5") {
+    if super::common::cli_has_hdf5() {
         attempts.push((DURING_HDF5, libc::SIGINT));
     }
     for (attempt, signal) in attempts {

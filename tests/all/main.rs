@@ -23,8 +23,6 @@ mod hostile;
 mod imaging;
 mod io_envi;
 mod io_exr;
-#[cfg(feature = "hdf5")]
-mod io_hdf5;
 mod io_npy;
 mod io_raster;
 mod los;
