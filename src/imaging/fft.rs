@@ -55,13 +55,13 @@ use std::sync::Arc;
 use ndarray::{s, Array2, ArrayView2, ArrayViewMut2, Axis};
 use num_complex::Complex;
 use rayon::prelude::*;
-use realfft::{ComplexToReal, RealFftPlanner};
+use realfft::ComplexToReal;
 
 pub use super::fft_float::{FftFloat, RowStores};
 use super::r2c::RealForward;
 use super::transpose::{gather_columns, scatter_columns};
 pub use super::transpose::{untranspose, TILE_ROWS};
-use rustfft::{Fft, FftPlanner};
+use rustfft::{Fft, FftDirection};
 
 /// Precision of the per-band forward transforms of the imaging engine. The accumulation
 /// over bands, the OTF, the inverse transform and the sampling are f64 in both cases.
@@ -191,15 +191,13 @@ pub struct ColumnScratch<T> {
 impl<T: FftFloat> RealFft2<T> {
     /// Plans transforms of a `rows × cols` real frame (both ≥ 1).
     pub fn new(rows: usize, cols: usize) -> Self {
-        let mut rp = RealFftPlanner::<T>::new();
-        let mut cp = FftPlanner::<T>::new();
         RealFft2 {
             rows,
             cols,
             r2c: RealForward::new(cols),
-            c2r: rp.plan_fft_inverse(cols),
-            col_forward: cp.plan_fft_forward(rows),
-            col_inverse: cp.plan_fft_inverse(rows),
+            c2r: T::plan_real_inverse(cols),
+            col_forward: T::plan_complex(rows, FftDirection::Forward),
+            col_inverse: T::plan_complex(rows, FftDirection::Inverse),
         }
     }
 

@@ -5,8 +5,11 @@
 //! [`super::transpose`]); and [`RowStores`], how the row pass writes its spectra. Below
 //! [`super::r2c`] and [`super::fft`], which use them.
 
+use std::sync::Arc;
+
 use num_complex::Complex;
-use rustfft::FftNum;
+use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
+use rustfft::{Fft, FftDirection, FftNum, FftPlanner};
 
 #[cfg(target_arch = "x86_64")]
 use super::transpose::store_tile8_transposed_avx;
@@ -27,6 +30,18 @@ pub enum RowStores {
 
 /// Floating-point type of a transform (f32 or f64), with lossless widening to f64.
 pub trait FftFloat: FftNum + Copy {
+    /// A complex transform of length `n` (`rustfft`'s planner). Planned in this crate for
+    /// each type (`#[inline(never)]`), so a generic user instantiated in another crate —
+    /// [`super::fft::RealFft2`] in an example or a test — calls it instead of compiling
+    /// `rustfft`'s algorithms for itself (a minute of build time each).
+    fn plan_complex(n: usize, direction: FftDirection) -> Arc<dyn Fft<Self>>;
+    /// A real-to-complex transform of length `n` (`realfft`'s planner), as
+    /// [`Self::plan_complex`].
+    fn plan_real_forward(n: usize) -> Arc<dyn RealToComplex<Self>>;
+    /// A complex-to-real transform of length `n` (`realfft`'s planner), as
+    /// [`Self::plan_complex`].
+    fn plan_real_inverse(n: usize) -> Arc<dyn ComplexToReal<Self>>;
+
     /// Nearest value of this type (rounding for f32).
     fn nearest_from_f64(x: f64) -> Self;
     /// Exact widening to f64.
@@ -76,6 +91,18 @@ pub trait FftFloat: FftNum + Copy {
 }
 
 impl FftFloat for f32 {
+    #[inline(never)]
+    fn plan_complex(n: usize, direction: FftDirection) -> Arc<dyn Fft<Self>> {
+        FftPlanner::new().plan_fft(n, direction)
+    }
+    #[inline(never)]
+    fn plan_real_forward(n: usize) -> Arc<dyn RealToComplex<Self>> {
+        RealFftPlanner::new().plan_fft_forward(n)
+    }
+    #[inline(never)]
+    fn plan_real_inverse(n: usize) -> Arc<dyn ComplexToReal<Self>> {
+        RealFftPlanner::new().plan_fft_inverse(n)
+    }
     fn all_physical(values: &[Self]) -> bool {
         crate::scene::radiance_is_physical(values)
     }
@@ -122,6 +149,18 @@ impl FftFloat for f32 {
 }
 
 impl FftFloat for f64 {
+    #[inline(never)]
+    fn plan_complex(n: usize, direction: FftDirection) -> Arc<dyn Fft<Self>> {
+        FftPlanner::new().plan_fft(n, direction)
+    }
+    #[inline(never)]
+    fn plan_real_forward(n: usize) -> Arc<dyn RealToComplex<Self>> {
+        RealFftPlanner::new().plan_fft_forward(n)
+    }
+    #[inline(never)]
+    fn plan_real_inverse(n: usize) -> Arc<dyn ComplexToReal<Self>> {
+        RealFftPlanner::new().plan_fft_inverse(n)
+    }
     #[inline]
     fn nearest_from_f64(x: f64) -> Self {
         x

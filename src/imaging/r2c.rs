@@ -22,8 +22,8 @@
 use std::sync::Arc;
 
 use num_complex::Complex;
-use realfft::{RealFftPlanner, RealToComplex};
-use rustfft::{Fft, FftPlanner};
+use realfft::RealToComplex;
+use rustfft::{Fft, FftDirection};
 
 #[cfg(all(test, target_arch = "x86_64"))]
 use super::fft_float::untangle_pairs_f32_avx;
@@ -60,10 +60,10 @@ impl<T: FftFloat> RealForward<T> {
     pub(crate) fn new(n: usize) -> Self {
         if n % 2 == 1 {
             return RealForward {
-                plan: Plan::Odd(RealFftPlanner::<T>::new().plan_fft_forward(n)),
+                plan: Plan::Odd(T::plan_real_forward(n)),
             };
         }
-        let inner = FftPlanner::<T>::new().plan_fft_forward(n / 2);
+        let inner = T::plan_complex(n / 2, FftDirection::Forward);
         let count = if n % 4 == 0 { n / 4 } else { n / 4 + 1 };
         let half = T::nearest_from_f64(0.5);
         let twiddles = (1..count)
@@ -176,7 +176,7 @@ mod tests {
     use super::*;
 
     fn check<T: FftFloat + PartialEq>(n: usize) {
-        let reference = RealFftPlanner::<T>::new().plan_fft_forward(n);
+        let reference = realfft::RealFftPlanner::<T>::new().plan_fft_forward(n);
         let ours = RealForward::<T>::new(n);
         assert_eq!(ours.len(), n);
         // A deterministic, irregular signal with a large mean (as radiance has).
