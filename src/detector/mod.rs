@@ -798,8 +798,9 @@ pub fn mean_total_e(signal_e: f64, dark_e: f64, background_e: f64) -> f64 {
 /// the very draws of `rand_distr`'s `Poisson`), below 12 `rand_distr`'s multiplication
 /// method. Means more than 40 σ above `full_well_e` return the full well without drawing
 /// (the draw cannot fall below it), which also keeps means beyond `Poisson::MAX_LAMBDA`
-/// valid; so does a mean that is not a finite number.
-#[inline]
+/// valid; so does a mean that is not a finite number. Always inlined: in the detector's
+/// AVX2 row loop the draw's `floor`s are then single instructions, not library calls.
+#[inline(always)]
 pub fn shot<R: rand::Rng + ?Sized>(mean_e: f64, full_well_e: f64, rng: &mut R) -> f64 {
     if mean_e <= 0.0 {
         return 0.0;
