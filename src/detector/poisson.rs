@@ -9,12 +9,12 @@
 //! What differs is only when the work is done. The crate computes every constant of the
 //! algorithm (the step-F polynomial c₀…c₃, ω, c: five divisions) when the distribution is
 //! built, i.e. for every pixel, since each pixel has its own mean. Steps N, I and S accept
-//! nearly every draw with only `s = √μ`, `L = ⌊μ − 1.1484⌋` and `d = 6μ²` (for μ = 1000
-//! the later steps run for fewer than 1 draw in 100), so here the other constants are
-//! computed, by the same expressions, only when a draw reaches step P; and the draw is
-//! a plain function the detector's row loop inlines (compiled for AVX2 with it, the
-//! `floor`s become single instructions) instead of a call into code built for the
-//! baseline CPU.
+//! nearly every draw with only `s = √μ`, `L = ⌊μ − 1.1484⌋` and `d = 6μ²` (step S rejects
+//! a draw with probability about E|z|³/(12√μ), under 1 % for μ ≥ 1000), so here the
+//! other constants are computed, by the same expressions, only when a draw reaches step
+//! P; and the draw is a plain function the detector's row loop inlines (compiled for AVX2
+//! with it, the `floor`s become single instructions) instead of a call into code built
+//! for the baseline CPU.
 
 use rand::{Rng, RngExt};
 use rand_distr::{Distribution, Exp1, StandardNormal};
