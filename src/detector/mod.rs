@@ -38,6 +38,7 @@ mod gain;
 pub mod ipc;
 pub mod memory;
 pub mod persistence;
+mod poisson;
 pub mod readout;
 pub(crate) mod rng;
 pub mod rts;
@@ -609,6 +610,13 @@ impl DetectorInstance {
     /// non-finite value.
     fn check_mean(&self, mean_e: &Array2<f64>) -> Result<()> {
         self.check_mean_shape(mean_e)?;
+        // One pass without early exit (it vectorises) before looking for the culprit.
+        let all_finite = mean_e
+            .as_slice()
+            .is_some_and(|s| s.iter().fold(true, |ok, v| ok & v.is_finite()));
+        if all_finite {
+            return Ok(());
+        }
         if let Some((idx, v)) = mean_e.indexed_iter().find(|(_, v)| !v.is_finite()) {
             return Err(Error::param(
                 format!("mean electrons at row {}, column {}", idx.0, idx.1),
@@ -785,11 +793,14 @@ pub fn mean_total_e(signal_e: f64, dark_e: f64, background_e: f64) -> f64 {
     signal_e.max(0.0) + dark_e + background_e
 }
 
-/// Step 2: one Poisson draw of mean `mean_e` (FOI report eq. 2.24; Ahrens–Dieter 1982 in
-/// `rand_distr` for means ≥ 12, constant time however large the mean). Means more than 40 σ
-/// above `full_well_e` return the full well without drawing (the draw cannot fall below
-/// it), which also keeps means beyond `Poisson::MAX_LAMBDA` valid.
-#[inline]
+/// Step 2: one Poisson draw of mean `mean_e` (FOI report eq. 2.24): for means ≥ 12
+/// Ahrens–Dieter 1982 (`poisson::ahrens_dieter`, constant time however large the mean,
+/// the very draws of `rand_distr`'s `Poisson`), below 12 `rand_distr`'s multiplication
+/// method. Means more than 40 σ above `full_well_e` return the full well without drawing
+/// (the draw cannot fall below it), which also keeps means beyond `Poisson::MAX_LAMBDA`
+/// valid; so does a mean that is not a finite number. Always inlined: in the detector's
+/// AVX2 row loop the draw's `floor`s are then single instructions, not library calls.
+#[inline(always)]
 pub fn shot<R: rand::Rng + ?Sized>(mean_e: f64, full_well_e: f64, rng: &mut R) -> f64 {
     if mean_e <= 0.0 {
         return 0.0;
@@ -797,9 +808,16 @@ pub fn shot<R: rand::Rng + ?Sized>(mean_e: f64, full_well_e: f64, rng: &mut R) -
     if mean_e > full_well_e + POISSON_SATURATION_SIGMAS * (mean_e.sqrt() + 1.0) {
         return full_well_e;
     }
-    match Poisson::new(mean_e) {
-        Ok(p) => p.sample(rng),
-        Err(_) => full_well_e,
+    if mean_e < poisson::SMALLEST_MEAN {
+        return match Poisson::new(mean_e) {
+            Ok(p) => p.sample(rng),
+            Err(_) => full_well_e,
+        };
+    }
+    if mean_e <= Poisson::<f64>::MAX_LAMBDA {
+        poisson::ahrens_dieter(mean_e, rng)
+    } else {
+        full_well_e
     }
 }
 

@@ -370,10 +370,15 @@ fn check_budget(
 /// The mean electrons of frame `f`, refused when a count is not finite or beyond the f32
 /// range of the products (it would be written as inf).
 fn finite_mean<'a>(e: &'a Array2<f64>, f: usize, input_name: &str) -> Result<&'a Array2<f64>> {
-    if let Some(v) = e
-        .iter()
-        .find(|v| !(v.is_finite() && v.abs() <= f32::MAX as f64))
-    {
+    let fits = |v: &f64| v.is_finite() && v.abs() <= f32::MAX as f64;
+    // One pass without early exit (it vectorises) before looking for the culprit.
+    if e.as_slice().is_some_and(|s| {
+        s.iter()
+            .fold(true, |ok, v| ok & (v.abs() <= f32::MAX as f64))
+    }) {
+        return Ok(e);
+    }
+    if let Some(v) = e.iter().find(|v| !fits(v)) {
         return Err(Error::OutOfRange(format!(
             "frame {f} of `{input_name}`: the mean signal overflowed ({v:e} electrons, beyond the f32 range of the products); the input radiance or the sensor's spectral response (detector.quantum_efficiency, transmissions, integration time, pixel area) is too large to give a finite count"
         )));
