@@ -34,6 +34,7 @@ mod r2c;
 mod sampling;
 use sampling::shift_phase;
 pub mod scene_band;
+pub mod space_variant;
 use scene_band::GridTaper;
 mod transpose;
 mod workspace;
@@ -286,6 +287,9 @@ pub struct Imager {
     /// The inverse on the detector's lattice, for an integer sampling ratio above 1 (the
     /// padded lengths are whole multiples of it): every frame's inverse transform.
     lattice: Option<LatticeInverse>,
+    /// The pupil OTFs over the field (`[optics.wavefront]`, [`space_variant`]), which
+    /// replace the aperture components (the tables are built without them).
+    field: Option<space_variant::FieldOptics>,
 }
 
 /// A chunk's row spectra larger than this are written with non-temporal stores
@@ -402,6 +406,11 @@ impl Imager {
         // The frequency samples and the chromatic tables are independent; both are
         // parallel loops with serial stretches between them (the tables' refinement
         // levels, the sampler's per-axis factors), which the other fills.
+        let rest = sensor
+            .optics
+            .wavefront
+            .is_some()
+            .then(|| otf.without_aperture());
         let (radial, tables) = rayon::join(
             || {
                 let sampler = otf.achromatic_sampler(&grid);
@@ -415,9 +424,9 @@ impl Imager {
                     }
                 })
             },
-            || RadialTables::covering(&otf, lo, hi, grid.rho_max()),
+            || RadialTables::covering(rest.as_ref().unwrap_or(&otf), lo, hi, grid.rho_max()),
         );
-        Ok(Imager {
+        let mut imager = Imager {
             sensor: sensor.clone(),
             otf,
             weights,
@@ -433,7 +442,10 @@ impl Imager {
             profiles: ProfileCache::new(active.len().div_ceil(BANDS_PER_CHUNK)),
             taper,
             lattice,
-        })
+            field: None,
+        };
+        imager.field = space_variant::FieldOptics::new(sensor, &imager, &active)?;
+        Ok(imager)
     }
 
     /// How the row pass writes a band's spectrum: streaming when a chunk's f32 row spectra
@@ -546,6 +558,9 @@ impl Imager {
         progress: impl FnMut(usize, usize),
         finish: impl FnOnce(&mut [Complex64]) -> Result<R>,
     ) -> Result<(R, ImagingStats)> {
+        if let Some(field) = &self.field {
+            return space_variant::image_with_zones(self, field, reader, frame, progress, finish);
+        }
         match self.precision {
             FftPrecision::F32 => {
                 self.mean_electrons_in(&self.fft32, reader, frame, progress, finish)
