@@ -52,7 +52,9 @@ use super::{Imager, ImagingStats};
 use crate::error::{Error, Result};
 use crate::io::CubeReader;
 use crate::sensor::Sensor;
-use crate::wavefront::{LocalWavefront, Pupil, PupilTransfer, Sampling, WavefrontModel};
+use crate::wavefront::{
+    FieldDependence, LocalWavefront, Pupil, PupilTransfer, Sampling, WavefrontModel,
+};
 
 /// Bound on the OTF's error from interpolating between wavelength nodes (see the module
 /// documentation).
@@ -125,7 +127,7 @@ impl FieldFrame {
     }
 
     /// Field height H (clamped to 1) and azimuth (rad, from +x toward +y = increasing
-    /// rows) of padded-frame position (row, col).
+    /// rows; 90° on the axis) of padded-frame position (row, col).
     pub fn field_point(&self, row: f64, col: f64) -> (f64, f64) {
         let y = (row - self.centre.0) * self.ifov_rad.0;
         let x = (col - self.centre.1) * self.ifov_rad.1;
@@ -134,7 +136,13 @@ impl FieldFrame {
         } else {
             0.0
         };
-        (h, y.atan2(x))
+        // On the axis the local frame is the image frame (field along +y).
+        let azimuth = if x == 0.0 && y == 0.0 {
+            std::f64::consts::FRAC_PI_2
+        } else {
+            y.atan2(x)
+        };
+        (h, azimuth)
     }
 
     /// Padded-frame coordinate of node `i` of `g` along an axis (0: rows, 1: cols).
@@ -349,10 +357,14 @@ impl FieldOptics {
                 )
             })
             .collect();
-        let locals: Vec<LocalWavefront> = centres.iter().map(|c| fo.model.at_field(c.0)).collect();
+        let locals: Vec<(LocalWavefront, LocalWavefront)> =
+            centres.iter().map(|c| fo.wavefront_at(c.0)).collect();
         // Wavelength nodes.
         let reference_m = fo.model.reference_wavelength_m();
-        let pv = locals.iter().map(peak_to_valley).fold(0.0, f64::max);
+        let pv = locals
+            .iter()
+            .map(|(a, b)| peak_to_valley(a) + peak_to_valley(b))
+            .fold(0.0, f64::max);
         let (s_lo, s_hi) = (reference_m / (hi_um * 1e-6), reference_m / (lo_um * 1e-6));
         let spacing = (8.0 * WAVELENGTH_INTERPOLATION_BOUND).sqrt() / (TAU * pv.max(1e-300));
         let needed = if pv == 0.0 || s_hi == s_lo {
@@ -379,9 +391,8 @@ impl FieldOptics {
         // One sampling for every zone and node: the steepest wavefront at the shortest
         // wavelength.
         let mut samples = settings.pupil_samples_across;
-        for l in &locals {
-            let s = Sampling::for_wavefront_from(l, reference_m, lambda_min_m, 2, samples)?;
-            samples = samples.max(s.samples_across);
+        for c in &centres {
+            samples = samples.max(fo.samples_for(c.0, lambda_min_m, samples)?);
         }
         let sampling = Sampling {
             samples_across: samples,
@@ -396,7 +407,8 @@ impl FieldOptics {
             .map(|&(k, j)| {
                 let t = PupilTransfer::compute_at_azimuth(
                     &fo.pupil,
-                    &locals[k],
+                    &locals[k].0,
+                    &locals[k].1,
                     centres[k].1,
                     reference_m,
                     reference_m / fo.node_scale[j],
@@ -412,6 +424,48 @@ impl FieldOptics {
             .map(|_| it.by_ref().take(nodes).collect())
             .collect();
         Ok(Some(fo))
+    }
+
+    /// The wavefront at field height `h` as the part that turns with the field azimuth
+    /// (Seidel terms, and with a field table every term: local values for a field point
+    /// along +y) and the part fixed to the lens (the field-independent Zernike terms of
+    /// `field_dependence = "seidel"`, given in the image frame: x along columns, y along
+    /// rows).
+    fn wavefront_at(&self, h: f64) -> (LocalWavefront, LocalWavefront) {
+        let w = self.model.at_field(h);
+        match self.model.field() {
+            FieldDependence::Seidel { .. } => (
+                LocalWavefront {
+                    seidel: w.seidel,
+                    zernike_rms_waves: Vec::new(),
+                },
+                LocalWavefront {
+                    zernike_rms_waves: w.zernike_rms_waves,
+                    ..LocalWavefront::default()
+                },
+            ),
+            FieldDependence::Table(_) => (w, LocalWavefront::default()),
+        }
+    }
+
+    /// Pupil samples across for `wavefront_at(h)` at `lambda_m`, at least `min_samples`:
+    /// the samples each part needs added (the slope of a sum is at most the sum of the
+    /// slopes).
+    fn samples_for(&self, h: f64, lambda_m: f64, min_samples: usize) -> Result<usize> {
+        let (turning, fixed) = self.wavefront_at(h);
+        let reference_m = self.model.reference_wavelength_m();
+        let need = |w: &LocalWavefront| -> Result<usize> {
+            Ok(Sampling::for_wavefront_from(w, reference_m, lambda_m, 2, 8)?.samples_across)
+        };
+        let n = (need(&turning)? + need(&fixed)?).max(min_samples);
+        if n > 1024 {
+            return Err(Error::param(
+                "optics.wavefront",
+                format!("{n} pupil samples across needed"),
+                "a wavefront whose slope needs at most 1024 samples across the pupil",
+            ));
+        }
+        Ok(n.next_multiple_of(2))
     }
 
     /// What `report.json` records.
@@ -433,9 +487,11 @@ impl FieldOptics {
     /// `samples` across the pupil (the same sampling for every point).
     fn psf_at(&self, row: f64, col: f64, lambda_m: f64, samples: usize) -> Result<Array2<f64>> {
         let (h, az) = self.frame.field_point(row, col);
+        let (turning, fixed) = self.wavefront_at(h);
         let t = PupilTransfer::compute_at_azimuth(
             &self.pupil,
-            &self.model.at_field(h),
+            &turning,
+            &fixed,
             az,
             self.model.reference_wavelength_m(),
             lambda_m,
@@ -451,7 +507,6 @@ impl FieldOptics {
     /// The largest point-source error of a `g × g` zone grid against the exact PSF at the
     /// cell centres and edge midpoints, as a fraction of the exact PSF's peak.
     fn grid_error(&self, g: usize, lambda_m: f64) -> Result<f64> {
-        let reference_m = self.model.reference_wavelength_m();
         // Node index coordinates (ty, tx) of the sample points; g = 1 samples the corners.
         let mut points: Vec<(f64, f64)> = Vec::new();
         if g == 1 {
@@ -487,9 +542,8 @@ impl FieldOptics {
             .collect();
         for &(ty, tx) in &all {
             let (r, c) = pos(ty, tx);
-            let w = self.model.at_field(self.frame.field_point(r, c).0);
-            let s = Sampling::for_wavefront_from(&w, reference_m, lambda_m, 2, samples)?;
-            samples = samples.max(s.samples_across);
+            samples =
+                samples.max(self.samples_for(self.frame.field_point(r, c).0, lambda_m, samples)?);
         }
         let psfs: Vec<Array2<f64>> = all
             .par_iter()
@@ -758,9 +812,11 @@ pub fn direct_summation(
             }
             let (row, col) = (py + r as f64, px + c as f64);
             let (h, az) = field.frame.field_point(row, col);
+            let (turning, fixed) = field.wavefront_at(h);
             let t = PupilTransfer::compute_at_azimuth(
                 &field.pupil,
-                &field.model.at_field(h),
+                &turning,
+                &fixed,
                 az,
                 reference_m,
                 lambda * 1e-6,

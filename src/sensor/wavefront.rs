@@ -465,6 +465,31 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("optics.wavefront.spider_vanes"), "{e}");
+        for (text, key) in [
+            ("zones_per_axis = 0", "optics.wavefront.zones_per_axis"),
+            (
+                "max_zones_per_axis = 17",
+                "optics.wavefront.max_zones_per_axis",
+            ),
+            ("zone_tolerance = 2.0", "optics.wavefront.zone_tolerance"),
+            (
+                "pupil_samples_across = 33",
+                "optics.wavefront.pupil_samples_across",
+            ),
+        ] {
+            let e = parse(&format!("reference_wavelength_um = 4.0\n{text}\n"))
+                .unwrap()
+                .zone_settings()
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(key), "{e}");
+        }
+        let z = parse("reference_wavelength_um = 4.0\nzones_per_axis = 3\n")
+            .unwrap()
+            .zone_settings()
+            .unwrap();
+        assert_eq!(z.zones_per_axis, Some(3));
+        assert_eq!(z.zone_tolerance, DEFAULT_ZONE_TOLERANCE);
         assert!(parse("reference_wavelength_um = 4.0\nzernike_convention = \"fringe\"\n").is_err());
         assert!(parse("reference_wavelength_um = 4.0\nw999_waves = 1\n").is_err());
     }

@@ -205,6 +205,7 @@ impl PupilTransfer {
         Self::compute_at_azimuth(
             pupil,
             wavefront,
+            &LocalWavefront::default(),
             std::f64::consts::FRAC_PI_2,
             reference_wavelength_m,
             wavelength_m,
@@ -215,15 +216,18 @@ impl PupilTransfer {
 
     /// [`PupilTransfer::compute`] for a field point in the direction `azimuth_rad` (counter-
     /// clockwise from +x) of the frame whose axes are the pupil's `x` and `y`: the local
-    /// wavefront (tangential axis along the field direction) is turned so that its
-    /// tangential axis points along the azimuth, while the aperture (obscuration, spider
-    /// vanes, fixed to the lens) is not. A frame point `(x, y)` is the local point
+    /// wavefront `wavefront` (tangential axis along the field direction) is turned so that
+    /// its tangential axis points along the azimuth, while the aperture (obscuration,
+    /// spider vanes) and `fixed`, a wavefront fixed to the lens (e.g. field-independent
+    /// Zernike terms), are not. A frame point `(x, y)` is the local point
     /// `x' = x sin α − y cos α` (sagittal), `y' = x cos α + y sin α` (tangential); at
     /// α = 90° (field along +y) the two frames coincide, which is
     /// [`PupilTransfer::compute`].
+    #[allow(clippy::too_many_arguments)]
     pub fn compute_at_azimuth(
         pupil: &Pupil,
         wavefront: &LocalWavefront,
+        fixed: &LocalWavefront,
         azimuth_rad: f64,
         reference_wavelength_m: f64,
         wavelength_m: f64,
@@ -262,7 +266,7 @@ impl PupilTransfer {
                 let x = (k as f64 - n as f64 / 2.0 + 0.5) * 2.0 / n as f64;
                 if pupil.transmits(x, y) {
                     let (xl, yl) = (x * sin_a - y * cos_a, x * cos_a + y * sin_a);
-                    let w = wavefront.waves(xl, yl) * scale;
+                    let w = (wavefront.waves(xl, yl) + fixed.waves(x, y)) * scale;
                     any_phase |= w != 0.0;
                     p[i * m + k] = Complex64::from_polar(1.0, TAU * w);
                     amplitude_sum += 1.0;
