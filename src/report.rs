@@ -522,7 +522,7 @@ impl RunReport {
             warnings: f.warnings,
             focal_plane: None,
             figures_of_merit: None,
-            wavefront_imaging: None,
+            wavefront_imaging: f.imaging.wavefront.clone(),
             execution: f.execution,
             timings_s: Timings {
                 read: f.imaging.read_s,

@@ -255,6 +255,8 @@ pub struct ImagingStats {
     pub inverse_s: f64,
     /// Precision of the forward transforms.
     pub precision: FftPrecision,
+    /// The zones and errors of `[optics.wavefront]` imaging ([`space_variant`]), if any.
+    pub wavefront: Option<space_variant::WavefrontImagingReport>,
 }
 
 /// A configured imaging chain for one sensor and one input geometry: reusable across the
@@ -287,8 +289,7 @@ pub struct Imager {
     /// The inverse on the detector's lattice, for an integer sampling ratio above 1 (the
     /// padded lengths are whole multiples of it): every frame's inverse transform.
     lattice: Option<LatticeInverse>,
-    /// The pupil OTFs over the field (`[optics.wavefront]`, [`space_variant`]), which
-    /// replace the aperture components (the tables are built without them).
+    /// The pupil OTFs over the field, replacing the aperture terms ([`space_variant`]).
     field: Option<space_variant::FieldOptics>,
 }
 
@@ -406,11 +407,7 @@ impl Imager {
         // The frequency samples and the chromatic tables are independent; both are
         // parallel loops with serial stretches between them (the tables' refinement
         // levels, the sampler's per-axis factors), which the other fills.
-        let rest = sensor
-            .optics
-            .wavefront
-            .is_some()
-            .then(|| otf.without_aperture());
+        let rest = space_variant::cascade_beside_pupil(sensor, &otf);
         let (radial, tables) = rayon::join(
             || {
                 let sampler = otf.achromatic_sampler(&grid);
@@ -426,7 +423,8 @@ impl Imager {
             },
             || RadialTables::covering(rest.as_ref().unwrap_or(&otf), lo, hi, grid.rho_max()),
         );
-        let mut imager = Imager {
+        let field = space_variant::FieldOptics::new(sensor, &sampling, &active)?;
+        Ok(Imager {
             sensor: sensor.clone(),
             otf,
             weights,
@@ -442,10 +440,8 @@ impl Imager {
             profiles: ProfileCache::new(active.len().div_ceil(BANDS_PER_CHUNK)),
             taper,
             lattice,
-            field: None,
-        };
-        imager.field = space_variant::FieldOptics::new(sensor, &imager, &active)?;
-        Ok(imager)
+            field,
+        })
     }
 
     /// How the row pass writes a band's spectrum: streaming when a chunk's f32 row spectra

@@ -51,7 +51,7 @@ use serde::Serialize;
 use super::{Imager, ImagingStats};
 use crate::error::{Error, Result};
 use crate::io::CubeReader;
-use crate::sensor::Sensor;
+use crate::sensor::{Sensor, SystemOtf};
 use crate::wavefront::{
     FieldDependence, LocalWavefront, Pupil, PupilTransfer, Sampling, WavefrontModel,
 };
@@ -107,8 +107,7 @@ pub struct FieldFrame {
 }
 
 impl FieldFrame {
-    fn new(imager: &Imager) -> Self {
-        let s = &imager.sampling;
+    fn new(s: &super::Sampling) -> Self {
         let axis = |a: &super::AxisSampling| {
             (
                 a.pad_before as f64 + a.first + (a.detector_len as f64 - 1.0) / 2.0 * a.ratio,
@@ -263,7 +262,11 @@ fn peak_to_valley(w: &LocalWavefront) -> f64 {
 impl FieldOptics {
     /// The pupil transfer functions of `sensor`'s `[optics.wavefront]` for `imager`'s
     /// frame and the active band wavelengths `active_um`; `None` without the section.
-    pub(super) fn new(sensor: &Sensor, imager: &Imager, active_um: &[f64]) -> Result<Option<Self>> {
+    pub(super) fn new(
+        sensor: &Sensor,
+        sampling: &super::Sampling,
+        active_um: &[f64],
+    ) -> Result<Option<Self>> {
         let Some(w) = &sensor.optics.wavefront else {
             return Ok(None);
         };
@@ -271,7 +274,7 @@ impl FieldOptics {
         let pupil = w.pupil(sensor.optics.obscuration_ratio)?;
         let settings = w.zone_settings()?;
         let diameter_m = sensor.optics.focal_length_m / sensor.optics.f_number;
-        let frame = FieldFrame::new(imager);
+        let frame = FieldFrame::new(sampling);
         let mut bands: Vec<f64> = active_um.to_vec();
         bands.sort_by(f64::total_cmp);
         bands.dedup();
@@ -394,7 +397,7 @@ impl FieldOptics {
         for c in &centres {
             samples = samples.max(fo.samples_for(c.0, lambda_min_m, samples)?);
         }
-        let sampling = Sampling {
+        let pupil_sampling = Sampling {
             samples_across: samples,
             padding: 2,
         };
@@ -413,7 +416,7 @@ impl FieldOptics {
                     reference_m,
                     reference_m / fo.node_scale[j],
                     diameter_m,
-                    sampling,
+                    pupil_sampling,
                 )?;
                 Ok(HalfPlaneOtf::from_transfer(&t))
             })
@@ -629,6 +632,17 @@ impl Imager {
     }
 }
 
+/// The cascade the tables of `sensor`'s imaging chain are built from when it has
+/// `[optics.wavefront]`: `otf` without the aperture components, which the pupil's OTF
+/// replaces ([`SystemOtf::without_aperture`]); `None` (the cascade itself) without it.
+pub(super) fn cascade_beside_pupil(sensor: &Sensor, otf: &SystemOtf) -> Option<SystemOtf> {
+    sensor
+        .optics
+        .wavefront
+        .is_some()
+        .then(|| otf.without_aperture())
+}
+
 /// `max |a − b| / max a`.
 fn relative_difference(a: &Array2<f64>, b: &Array2<f64>) -> f64 {
     let peak = a.iter().cloned().fold(0.0, f64::max);
@@ -678,6 +692,7 @@ pub(super) fn image_with_zones<R>(
     let mut stats = ImagingStats {
         padded_shape: (ny, nx),
         precision: super::fft::FftPrecision::F64,
+        wavefront: Some(field.report.clone()),
         ..Default::default()
     };
     let active = imager.weights.active_bands();

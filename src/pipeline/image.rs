@@ -141,14 +141,6 @@ impl ImagingStage {
         self.imagers[0].sampling()
     }
 
-    /// How `[optics.wavefront]` entered the imaging chain (the first colour channel's
-    /// imager; every channel has the same optics), if the sensor has it.
-    pub fn wavefront_report(
-        &self,
-    ) -> Option<crate::imaging::space_variant::WavefrontImagingReport> {
-        self.imagers[0].wavefront_report().cloned()
-    }
-
     /// Bytes one frame in flight holds while it is imaged, beyond what
     /// [`crate::limits::check_run`] already counts for the run: per colour channel the f64
     /// accumulator (`[fx][fy]`) and room for an untransposed copy at the end (2 × 16 B per

@@ -546,7 +546,6 @@ pub fn run_streaming(
         execution: done.execution,
     });
     report.input.units_source = reader.units_source();
-    report.wavefront_imaging = imaging.wavefront_report();
     report.focal_plane = focal_plane::report(&exposure, focal_plane.as_ref(), &report);
     add_saturation_warning(sensor, &first, &mut report, &mut warnings);
     Ok(StreamedRun {
