@@ -88,6 +88,11 @@ pub struct RunReport {
     /// docs/figures-of-merit.md).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub figures_of_merit: Option<serde_json::Value>,
+    /// How `[optics.wavefront]` entered the imaging chain: zones across the field, their
+    /// point-source error against direct summation, wavelength nodes (docs/wavefront.md,
+    /// "Across the field"); absent without the section.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub wavefront_imaging: Option<crate::imaging::space_variant::WavefrontImagingReport>,
     /// How the run was executed (threads, frames imaged at once); like the timings, it
     /// does not change any product.
     pub execution: ExecutionReport,
@@ -517,6 +522,7 @@ impl RunReport {
             warnings: f.warnings,
             focal_plane: None,
             figures_of_merit: None,
+            wavefront_imaging: f.imaging.wavefront.clone(),
             execution: f.execution,
             timings_s: Timings {
                 read: f.imaging.read_s,

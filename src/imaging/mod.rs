@@ -34,6 +34,7 @@ mod r2c;
 mod sampling;
 use sampling::shift_phase;
 pub mod scene_band;
+pub mod space_variant;
 use scene_band::GridTaper;
 mod transpose;
 mod workspace;
@@ -254,6 +255,8 @@ pub struct ImagingStats {
     pub inverse_s: f64,
     /// Precision of the forward transforms.
     pub precision: FftPrecision,
+    /// The zones and errors of `[optics.wavefront]` imaging ([`space_variant`]), if any.
+    pub wavefront: Option<space_variant::WavefrontImagingReport>,
 }
 
 /// A configured imaging chain for one sensor and one input geometry: reusable across the
@@ -286,6 +289,8 @@ pub struct Imager {
     /// The inverse on the detector's lattice, for an integer sampling ratio above 1 (the
     /// padded lengths are whole multiples of it): every frame's inverse transform.
     lattice: Option<LatticeInverse>,
+    /// The pupil OTFs over the field, replacing the aperture terms ([`space_variant`]).
+    field: Option<space_variant::FieldOptics>,
 }
 
 /// A chunk's row spectra larger than this are written with non-temporal stores
@@ -402,6 +407,7 @@ impl Imager {
         // The frequency samples and the chromatic tables are independent; both are
         // parallel loops with serial stretches between them (the tables' refinement
         // levels, the sampler's per-axis factors), which the other fills.
+        let rest = space_variant::cascade_beside_pupil(sensor, &otf);
         let (radial, tables) = rayon::join(
             || {
                 let sampler = otf.achromatic_sampler(&grid);
@@ -415,8 +421,9 @@ impl Imager {
                     }
                 })
             },
-            || RadialTables::covering(&otf, lo, hi, grid.rho_max()),
+            || RadialTables::covering(rest.as_ref().unwrap_or(&otf), lo, hi, grid.rho_max()),
         );
+        let field = space_variant::FieldOptics::new(sensor, &sampling, &active)?;
         Ok(Imager {
             sensor: sensor.clone(),
             otf,
@@ -433,6 +440,7 @@ impl Imager {
             profiles: ProfileCache::new(active.len().div_ceil(BANDS_PER_CHUNK)),
             taper,
             lattice,
+            field,
         })
     }
 
@@ -546,6 +554,9 @@ impl Imager {
         progress: impl FnMut(usize, usize),
         finish: impl FnOnce(&mut [Complex64]) -> Result<R>,
     ) -> Result<(R, ImagingStats)> {
+        if let Some(field) = &self.field {
+            return space_variant::image_with_zones(self, field, reader, frame, progress, finish);
+        }
         match self.precision {
             FftPrecision::F32 => {
                 self.mean_electrons_in(&self.fft32, reader, frame, progress, finish)

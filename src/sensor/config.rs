@@ -746,7 +746,7 @@ impl SensorConfig {
     /// Things that are valid but probably not what the user meant.
     pub fn warnings(&self) -> Vec<String> {
         let mut w = Vec::new();
-        w.extend(super::wavefront::cascade_warning(&self.optics));
+        w.extend(super::wavefront::cascade_warning(self));
         if let (Some(a), Some(_)) = (&self.aerosol, &self.atmosphere) {
             if !a.dc_normalised {
                 w.push(

@@ -269,6 +269,23 @@ impl SystemOtf {
         otf
     }
 
+    /// The same cascade without the aperture components (diffraction, Shannon
+    /// aberration, defocus): what stays cascaded when the pupil's own transfer function
+    /// (`[optics.wavefront]`, docs/wavefront.md "In the imaging chain") replaces them,
+    /// since both describe the same aperture and wavefront.
+    pub fn without_aperture(&self) -> SystemOtf {
+        let mut otf = self.clone();
+        otf.components.retain(|c| {
+            !matches!(
+                c,
+                Component::Diffraction | Component::Aberration | Component::Defocus
+            )
+        });
+        otf.defocus = None;
+        otf.aberration_rms_waves = 0.0;
+        otf
+    }
+
     /// Whether the cascade holds a component that depends on the path length to the
     /// scene (turbulence, aerosol).
     pub fn depends_on_range(&self) -> bool {

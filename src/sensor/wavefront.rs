@@ -153,6 +153,45 @@ pub struct WavefrontConfig {
     /// Direction of the first vane, degrees counter-clockwise from the sagittal axis.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub spider_angle_deg: f64,
+    /// Pupil samples across the diameter for the imaging chain's OTFs (even, 32..=1024;
+    /// default 256, refined for steep wavefronts). Fewer is faster and less exact
+    /// (docs/wavefront.md, "Accuracy of the sampled pupil").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pupil_samples_across: Option<usize>,
+    /// Zones per field axis of space-variant imaging (1..=16; K = zones² in all). Absent:
+    /// chosen automatically from `zone_tolerance` (docs/wavefront.md, "Across the field").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub zones_per_axis: Option<usize>,
+    /// The largest error of a point source's image against direct space-variant
+    /// summation, as a fraction of its PSF peak, that the automatic zone count aims at
+    /// (0 < t ≤ 0.5; default 1e-3).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub zone_tolerance: Option<f64>,
+    /// The most zones per axis the automatic choice may take (1..=16; default 6).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_zones_per_axis: Option<usize>,
+}
+
+/// Default [`WavefrontConfig::zone_tolerance`].
+pub const DEFAULT_ZONE_TOLERANCE: f64 = 1e-3;
+
+/// Default [`WavefrontConfig::max_zones_per_axis`].
+pub const DEFAULT_MAX_ZONES_PER_AXIS: usize = 6;
+
+/// Largest zones per axis accepted.
+pub const MAX_ZONES_PER_AXIS: usize = 16;
+
+/// How the imaging chain uses `[optics.wavefront]` (the resolved imaging keys).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ZoneSettings {
+    /// Pupil samples across the diameter (before refinement for steep wavefronts).
+    pub pupil_samples_across: usize,
+    /// Zones per axis if set by the user.
+    pub zones_per_axis: Option<usize>,
+    /// Target point-source error, fraction of the PSF peak.
+    pub zone_tolerance: f64,
+    /// Most zones per axis of the automatic choice.
+    pub max_zones_per_axis: usize,
 }
 
 fn u32_is_zero(v: &u32) -> bool {
@@ -222,6 +261,50 @@ impl WavefrontConfig {
         WavefrontModel::new(lambda_um * 1e-6, field).map_err(named)
     }
 
+    /// The imaging keys, checked; errors name the key, its value and what is valid.
+    pub fn zone_settings(&self) -> Result<ZoneSettings> {
+        let samples = self
+            .pupil_samples_across
+            .unwrap_or(crate::wavefront::transfer::DEFAULT_SAMPLES_ACROSS);
+        if !(32..=1024).contains(&samples) || samples % 2 != 0 {
+            return Err(Error::param(
+                format!("{PREFIX}pupil_samples_across"),
+                samples,
+                "an even number of pupil samples in 32..=1024",
+            ));
+        }
+        for (key, v) in [
+            ("zones_per_axis", self.zones_per_axis),
+            ("max_zones_per_axis", self.max_zones_per_axis),
+        ] {
+            if let Some(v) = v {
+                if !(1..=MAX_ZONES_PER_AXIS).contains(&v) {
+                    return Err(Error::param(
+                        format!("{PREFIX}{key}"),
+                        v,
+                        format!("an integer in 1..={MAX_ZONES_PER_AXIS}"),
+                    ));
+                }
+            }
+        }
+        let tol = self.zone_tolerance.unwrap_or(DEFAULT_ZONE_TOLERANCE);
+        if !(tol.is_finite() && tol > 0.0 && tol <= 0.5) {
+            return Err(Error::param(
+                format!("{PREFIX}zone_tolerance"),
+                tol,
+                "a fraction of the PSF peak in (0, 0.5]",
+            ));
+        }
+        Ok(ZoneSettings {
+            pupil_samples_across: samples,
+            zones_per_axis: self.zones_per_axis,
+            zone_tolerance: tol,
+            max_zones_per_axis: self
+                .max_zones_per_axis
+                .unwrap_or(DEFAULT_MAX_ZONES_PER_AXIS),
+        })
+    }
+
     /// The pupil: the `[optics]` obscuration with these spider vanes.
     pub fn pupil(&self, obscuration_ratio: f64) -> Result<Pupil> {
         if !self.spider_angle_deg.is_finite() {
@@ -256,16 +339,30 @@ pub fn validate(optics: &super::config::OpticsConfig) -> Result<()> {
     if let Some(w) = &optics.wavefront {
         w.model()?;
         w.pupil(optics.obscuration_ratio)?;
+        w.zone_settings()?;
     }
     Ok(())
 }
 
-/// The warning of a sensor with `[optics.wavefront]`: the imaging cascade does not use it.
-pub fn cascade_warning(optics: &super::config::OpticsConfig) -> Option<String> {
-    optics.wavefront.as_ref().map(|_| {
-        "[optics.wavefront] is used by `eoir psf` and `eoir mtf --field` only; the imaging \
-         cascade still uses [diffraction], [aberration] and [defocus]"
-            .to_string()
+/// The warning of a sensor with `[optics.wavefront]` and an enabled `[aberration]` or
+/// `[defocus]`: the pupil's transfer function replaces them (and `[diffraction]`) in the
+/// imaging chain, so they are not applied (docs/wavefront.md, "In the imaging chain").
+pub fn cascade_warning(sensor: &super::SensorConfig) -> Option<String> {
+    sensor.optics.wavefront.as_ref()?;
+    let mut replaced = Vec::new();
+    if sensor.aberration.as_ref().is_some_and(|a| a.enabled) {
+        replaced.push("[aberration]");
+    }
+    if sensor.defocus.as_ref().is_some_and(|d| d.enabled) {
+        replaced.push("[defocus]");
+    }
+    (!replaced.is_empty()).then(|| {
+        format!(
+            "[optics.wavefront] replaces {} in the imaging chain (the pupil's transfer \
+             function holds the aperture and the whole wavefront): put the aberration into \
+             the wavefront coefficients (e.g. w020_waves for defocus)",
+            replaced.join(" and ")
+        )
     })
 }
 
@@ -368,6 +465,31 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("optics.wavefront.spider_vanes"), "{e}");
+        for (text, key) in [
+            ("zones_per_axis = 0", "optics.wavefront.zones_per_axis"),
+            (
+                "max_zones_per_axis = 17",
+                "optics.wavefront.max_zones_per_axis",
+            ),
+            ("zone_tolerance = 2.0", "optics.wavefront.zone_tolerance"),
+            (
+                "pupil_samples_across = 33",
+                "optics.wavefront.pupil_samples_across",
+            ),
+        ] {
+            let e = parse(&format!("reference_wavelength_um = 4.0\n{text}\n"))
+                .unwrap()
+                .zone_settings()
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(key), "{e}");
+        }
+        let z = parse("reference_wavelength_um = 4.0\nzones_per_axis = 3\n")
+            .unwrap()
+            .zone_settings()
+            .unwrap();
+        assert_eq!(z.zones_per_axis, Some(3));
+        assert_eq!(z.zone_tolerance, DEFAULT_ZONE_TOLERANCE);
         assert!(parse("reference_wavelength_um = 4.0\nzernike_convention = \"fringe\"\n").is_err());
         assert!(parse("reference_wavelength_um = 4.0\nw999_waves = 1\n").is_err());
     }

@@ -69,6 +69,24 @@ impl Sampling {
         wavelength_m: f64,
         padding: usize,
     ) -> Result<Self> {
+        Self::for_wavefront_from(
+            wavefront,
+            reference_wavelength_m,
+            wavelength_m,
+            padding,
+            DEFAULT_SAMPLES_ACROSS,
+        )
+    }
+
+    /// [`Sampling::for_wavefront`] starting from `min_samples` samples across the pupil
+    /// (even, 8..=1024) instead of the default.
+    pub fn for_wavefront_from(
+        wavefront: &LocalWavefront,
+        reference_wavelength_m: f64,
+        wavelength_m: f64,
+        padding: usize,
+        min_samples: usize,
+    ) -> Result<Self> {
         let scale = reference_wavelength_m / wavelength_m;
         // Largest |∇W| (waves per unit radius) on a polar set of points, by central
         // differences.
@@ -86,7 +104,7 @@ impl Sampling {
         }
         // One sample is 2/n of the radius: slope · 2/n ≤ MAX_WAVES_PER_SAMPLE.
         let need = (2.0 * slope / MAX_WAVES_PER_SAMPLE).ceil() as usize;
-        let n = need.max(DEFAULT_SAMPLES_ACROSS).next_multiple_of(2);
+        let n = need.max(min_samples).next_multiple_of(2);
         if n > 1024 {
             return Err(Error::param(
                 "wavefront",
@@ -184,7 +202,47 @@ impl PupilTransfer {
         diameter_m: f64,
         sampling: Sampling,
     ) -> Result<Self> {
+        Self::compute_at_azimuth(
+            pupil,
+            wavefront,
+            &LocalWavefront::default(),
+            std::f64::consts::FRAC_PI_2,
+            reference_wavelength_m,
+            wavelength_m,
+            diameter_m,
+            sampling,
+        )
+    }
+
+    /// [`PupilTransfer::compute`] for a field point in the direction `azimuth_rad` (counter-
+    /// clockwise from +x) of the frame whose axes are the pupil's `x` and `y`: the local
+    /// wavefront `wavefront` (tangential axis along the field direction) is turned so that
+    /// its tangential axis points along the azimuth, while the aperture (obscuration,
+    /// spider vanes) and `fixed`, a wavefront fixed to the lens (e.g. field-independent
+    /// Zernike terms), are not. A frame point `(x, y)` is the local point
+    /// `x' = x sin α − y cos α` (sagittal), `y' = x cos α + y sin α` (tangential); at
+    /// α = 90° (field along +y) the two frames coincide, which is
+    /// [`PupilTransfer::compute`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn compute_at_azimuth(
+        pupil: &Pupil,
+        wavefront: &LocalWavefront,
+        fixed: &LocalWavefront,
+        azimuth_rad: f64,
+        reference_wavelength_m: f64,
+        wavelength_m: f64,
+        diameter_m: f64,
+        sampling: Sampling,
+    ) -> Result<Self> {
         sampling.validate()?;
+        if !azimuth_rad.is_finite() {
+            return Err(Error::param("azimuth", azimuth_rad, "a finite angle"));
+        }
+        let (sin_a, cos_a) = if azimuth_rad == std::f64::consts::FRAC_PI_2 {
+            (1.0, 0.0)
+        } else {
+            azimuth_rad.sin_cos()
+        };
         for (field, v) in [
             ("reference_wavelength_m", reference_wavelength_m),
             ("wavelength_m", wavelength_m),
@@ -207,7 +265,8 @@ impl PupilTransfer {
             for k in 0..n {
                 let x = (k as f64 - n as f64 / 2.0 + 0.5) * 2.0 / n as f64;
                 if pupil.transmits(x, y) {
-                    let w = wavefront.waves(x, y) * scale;
+                    let (xl, yl) = (x * sin_a - y * cos_a, x * cos_a + y * sin_a);
+                    let w = (wavefront.waves(xl, yl) + fixed.waves(x, y)) * scale;
                     any_phase |= w != 0.0;
                     p[i * m + k] = Complex64::from_polar(1.0, TAU * w);
                     amplitude_sum += 1.0;

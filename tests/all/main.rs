@@ -46,6 +46,7 @@ mod scene_cli;
 mod scenes;
 mod sensor_config;
 mod sequence_pieces;
+mod space_variant;
 mod spectrum;
 mod temperature;
 mod third_party;
