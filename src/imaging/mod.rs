@@ -22,6 +22,7 @@
 //! view is centred in the scene's and must lie inside it.
 
 mod accumulate;
+pub mod distortion;
 pub mod fft;
 mod fft_float;
 pub mod lattice;
