@@ -63,13 +63,9 @@ pub fn psf(args: PsfArgs) -> Result<()> {
     if args.field.is_empty() || args.field.len() > 16 {
         anyhow::bail!("--field: expected 1 to 16 field heights");
     }
-    let (png_bytes, transfers) = eoir::pipeline::field_pictures::psf_grid_png(
-        &config,
-        &args.field,
-        wavelength_um,
-        hw,
-    )
-    .context("PSF grid")?;
+    let (png_bytes, transfers) =
+        eoir::pipeline::field_pictures::psf_grid_png(&config, &args.field, wavelength_um, hw)
+            .context("PSF grid")?;
     let reports: Vec<FieldPsfReport> = transfers
         .iter()
         .zip(&args.field)

@@ -136,7 +136,11 @@ impl Resampler {
                         ),
                     )
                 })?;
-                let s = if h_real > 0.0 { h / h_real } else { 1.0 / law.ratio(0.0) };
+                let s = if h_real > 0.0 {
+                    h / h_real
+                } else {
+                    1.0 / law.ratio(0.0)
+                };
                 let (row0, wy) = taps(cy + (i as f64 - cy) * s);
                 let (col0, wx) = taps(cx + (j as f64 - cx) * s);
                 sources.push(Source {
@@ -281,7 +285,14 @@ pub fn truth_rows(sensor: &Sensor, law: &DistortionConfig, step: usize) -> Vec<[
             let h = law.paraxial(h_real).unwrap_or(h_real);
             let s = if h_real > 0.0 { h / h_real } else { 1.0 };
             let to_angle = ifov / d.pitch_m;
-            out.push([r as f64, c as f64, x * s * to_angle, y * s * to_angle, h, h_real]);
+            out.push([
+                r as f64,
+                c as f64,
+                x * s * to_angle,
+                y * s * to_angle,
+                h,
+                h_real,
+            ]);
         }
     }
     out
@@ -303,7 +314,12 @@ pub fn truth_csv(sensor: &Sensor, law: &DistortionConfig) -> String {
 /// The distorted reader of a run, or `None` when the sensor has no distortion (or an
 /// identity law): the run then reads `reader` as it is.
 pub fn resampler_for(sensor: &Sensor, sampling: &Sampling) -> Result<Option<Arc<Resampler>>> {
-    match sensor.optics.distortion.as_ref().filter(|d| !d.is_identity()) {
+    match sensor
+        .optics
+        .distortion
+        .as_ref()
+        .filter(|d| !d.is_identity())
+    {
         Some(law) => Ok(Some(Arc::new(Resampler::new(sensor, sampling, law)?))),
         None => Ok(None),
     }

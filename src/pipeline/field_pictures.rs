@@ -56,18 +56,25 @@ pub fn psf_grid_png(
         tiles.push((side, tile));
         transfers.push(t);
     }
-    let side = tiles.first().map(|t| t.0).ok_or_else(|| {
-        Error::param("field heights", "none", "at least one field height")
-    })?;
+    let side = tiles
+        .first()
+        .map(|t| t.0)
+        .ok_or_else(|| Error::param("field heights", "none", "at least one field height"))?;
     let zside = side * ZOOM;
     let width = tiles.len() * zside + (tiles.len() - 1) * GAP;
     let height = zside + LABEL_PX;
     let mut buf = vec![255u8; width * height * 3];
     {
         ensure_font();
-        let root = BitMapBackend::with_buffer(&mut buf, (width as u32, height as u32))
-            .into_drawing_area();
-        let draw_err = |e: String| Error::param("psf grid", format!("cannot draw: {e}"), "a drawable picture");
+        let root =
+            BitMapBackend::with_buffer(&mut buf, (width as u32, height as u32)).into_drawing_area();
+        let draw_err = |e: String| {
+            Error::param(
+                "psf grid",
+                format!("cannot draw: {e}"),
+                "a drawable picture",
+            )
+        };
         for (k, (_, tile)) in tiles.iter().enumerate() {
             let x0 = k * (zside + GAP);
             for r in 0..zside {
@@ -89,7 +96,10 @@ pub fn psf_grid_png(
         }
         root.present().map_err(|e| draw_err(e.to_string()))?;
     }
-    Ok((crate::display::encode_png(width, height, 3, &buf)?, transfers))
+    Ok((
+        crate::display::encode_png(width, height, 3, &buf)?,
+        transfers,
+    ))
 }
 
 /// The tangential and sagittal MTF of the pupil at each of `transfers` (field heights
@@ -101,14 +111,19 @@ pub fn field_mtf_png(
 ) -> Result<Vec<u8>> {
     let fc = transfers.first().map_or(0.0, |t| t.cutoff_cy_per_rad());
     let points = 200;
-    let f: Vec<f64> = (0..=points).map(|i| fc * i as f64 / points as f64).collect();
+    let f: Vec<f64> = (0..=points)
+        .map(|i| fc * i as f64 / points as f64)
+        .collect();
     let x: Vec<f64> = f.iter().map(|v| v * 1e-3).collect();
     let curves: Vec<(String, Vec<f64>)> = transfers
         .iter()
         .zip(fields)
         .flat_map(|(t, h)| {
             let (tan, sag) = t.tangential_sagittal_cy_per_rad(&f);
-            [(format!("T, H = {h:.1}"), tan), (format!("S, H = {h:.1}"), sag)]
+            [
+                (format!("T, H = {h:.1}"), tan),
+                (format!("S, H = {h:.1}"), sag),
+            ]
         })
         .collect();
     let title = format!("pupil MTF across the field at {wavelength_um:.2} µm");

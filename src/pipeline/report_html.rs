@@ -212,7 +212,10 @@ impl RunPictures {
 }
 
 /// The field pictures of a sensor with `[optics.wavefront]` at the mean wavelength.
-fn field_optics(sensor: &crate::sensor::Sensor, wavelength_um: Option<f64>) -> Result<Vec<Picture>> {
+fn field_optics(
+    sensor: &crate::sensor::Sensor,
+    wavelength_um: Option<f64>,
+) -> Result<Vec<Picture>> {
     use super::field_pictures::{field_mtf_png, psf_grid_png, PSF_DECADES, REPORT_FIELDS};
     let (Some(l), Some(_)) = (wavelength_um, sensor.optics.wavefront.as_ref()) else {
         return Ok(Vec::new());
