@@ -362,17 +362,12 @@ pub struct Calibration {
     bad_positions: Vec<(usize, usize)>,
 }
 
-/// The cos⁴θ relative illumination of each pixel centre (θ from the IFOV and the pixel's
-/// offset from the array centre, tan²θ = x² + y²), as applied by the imaging engine
-/// (docs/design.md §4.1). Private copy: the engine's helper is not public.
-pub(crate) fn cos4_map(sensor: &Sensor, rows: usize, cols: usize) -> Array2<f64> {
-    let d = sensor.ifov_rad();
-    Array2::from_shape_fn((rows, cols), |(r, c)| {
-        let y = (r as f64 - (rows as f64 - 1.0) / 2.0) * d;
-        let x = (c as f64 - (cols as f64 - 1.0) / 2.0) * d;
-        let cos2 = 1.0 / (1.0 + x * x + y * y);
-        cos2 * cos2
-    })
+/// The relative illumination of each pixel centre as a uniform source shows it: cos⁴θ,
+/// the `[optics.relative_illumination]` table and distortion's area ratio
+/// ([`crate::imaging::relative_illumination::calibration_map`], the imaging engine's own
+/// map), `None` when the optics add no fall-off.
+pub(crate) fn cos4_map(sensor: &Sensor, rows: usize, cols: usize) -> Result<Option<Array2<f64>>> {
+    crate::imaging::relative_illumination::calibration_map(sensor, rows, cols)
 }
 
 /// Largest value of `s` on its breakpoints and a [`PEAK_SEARCH_POINTS`] grid over its
@@ -595,7 +590,7 @@ impl Calibration {
         );
         let chain = Chain::new(sensor, model, electrons_range_k, opts.radiance_range_k)?;
         let temperatures_k = reference_temperatures(sensor, &chain, opts)?;
-        let cos4 = sensor.optics.cos4.then(|| cos4_map(sensor, rows, cols));
+        let cos4 = cos4_map(sensor, rows, cols)?;
 
         // Calibration levels: averaged frames and their ideal-DN references.
         let m = opts.frames_per_level;

@@ -163,7 +163,7 @@ pub fn measured_netd_sampled(
     };
     let response = sensor.response();
     let camera = sensor.camera();
-    let cos4 = sensor.optics.cos4.then(|| cos4_map(sensor, rows, cols));
+    let cos4 = cos4_map(sensor, rows, cols)?;
     let field = |t: f64| -> Result<Array2<f64>> {
         let e = camera.electrons_blackbody(t, response)?;
         Ok(match &cos4 {

@@ -3,7 +3,6 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use ndarray::Array3;
 
 use eoir::report::mean_wavelength_um;
 
@@ -40,11 +39,7 @@ struct FieldPsfReport {
 }
 
 /// Pictures per field point, each normalised to its own peak, log stretch over 4 decades.
-const DECADES: f64 = 4.0;
-/// Pixels between pictures.
-const GAP: usize = 4;
-/// Each PSF sample (λ/(4D)) is drawn as ZOOM × ZOOM pixels.
-const ZOOM: usize = 2;
+const DECADES: f64 = eoir::pipeline::field_pictures::PSF_DECADES;
 
 /// Computes the PSF at each field height and writes `psf_grid.png` and `psf.json`.
 pub fn psf(args: PsfArgs) -> Result<()> {
@@ -68,61 +63,34 @@ pub fn psf(args: PsfArgs) -> Result<()> {
     if args.field.is_empty() || args.field.len() > 16 {
         anyhow::bail!("--field: expected 1 to 16 field heights");
     }
-    let wavelength_m = wavelength_um * 1e-6;
-    let mut tiles = Vec::new();
-    let mut reports = Vec::new();
-    for &h in &args.field {
-        let t = eoir::sensor::wavefront::pupil_transfer(&config, h, wavelength_m, 4)
-            .with_context(|| format!("PSF at field height {h}"))?;
-        let (cx, cy) = t.centroid_rad();
-        reports.push(FieldPsfReport {
-            field_h: h,
-            wavelength_um,
-            centroid_x_urad: cx * 1e6,
-            centroid_y_urad: cy * 1e6,
-            fwhm_urad: t.fwhm_rad() * 1e6,
-            strehl: t.strehl(),
-            samples_across_pupil: t.sampling().samples_across,
-        });
-        // λ/D is `padding` = 4 PSF samples.
-        let psf = t.psf();
-        let m = psf.nrows() as i64;
-        let half = ((hw * 4.0).round() as i64).min(m / 2 - 1);
-        let peak = psf.iter().cloned().fold(0.0, f64::max);
-        let side = (2 * half + 1) as usize;
-        let mut tile = vec![[0u8; 3]; side * side];
-        for (i, row) in (-half..=half).rev().enumerate() {
-            for (j, col) in (-half..=half).enumerate() {
-                let v = psf[((m / 2 + row) as usize, (m / 2 + col) as usize)] / peak;
-                let t = (v.max(10f64.powf(-DECADES)).log10() + DECADES) / DECADES;
-                tile[i * side + j] = eoir::display::inferno(t);
+    let (png_bytes, transfers) =
+        eoir::pipeline::field_pictures::psf_grid_png(&config, &args.field, wavelength_um, hw)
+            .context("PSF grid")?;
+    let reports: Vec<FieldPsfReport> = transfers
+        .iter()
+        .zip(&args.field)
+        .map(|(t, &h)| {
+            let (cx, cy) = t.centroid_rad();
+            FieldPsfReport {
+                field_h: h,
+                wavelength_um,
+                centroid_x_urad: cx * 1e6,
+                centroid_y_urad: cy * 1e6,
+                fwhm_urad: t.fwhm_rad() * 1e6,
+                strehl: t.strehl(),
+                samples_across_pupil: t.sampling().samples_across,
             }
-        }
-        tiles.push((side, tile));
-    }
-    let side = tiles[0].0;
-    let zside = side * ZOOM;
-    let width = tiles.len() * zside + (tiles.len() - 1) * GAP;
-    let mut rgb = Array3::<u8>::zeros((zside, width, 3));
-    for (k, (_, tile)) in tiles.iter().enumerate() {
-        let x0 = k * (zside + GAP);
-        for r in 0..zside {
-            for c in 0..zside {
-                for ch in 0..3 {
-                    rgb[(r, x0 + c, ch)] = tile[(r / ZOOM) * side + c / ZOOM][ch];
-                }
-            }
-        }
-    }
+        })
+        .collect();
     eoir::io::output::create_dir_all_guarded(&args.out)?;
     let png = args.out.join("psf_grid.png");
-    eoir::io::raster::write_png_rgb8(&png, rgb.view())?;
+    eoir::display::write_png_bytes(&png, &png_bytes)?;
     let json = args.out.join("psf.json");
     let text = serde_json::to_string_pretty(&serde_json::json!({
         "sensor": sensor.name,
         "wavelength_um": wavelength_um,
         "picture": format!(
-            "one tile per field height, left to right; each ±{hw} λ/D, normalised to its peak, \
+            "one tile per field height, left to right, labelled H = …; each ±{hw} λ/D, normalised to its peak, \
              log10 stretch over {DECADES} decades (inferno); tangential axis up"
         ),
         "fields": reports,

@@ -22,6 +22,7 @@
 //! view is centred in the scene's and must lie inside it.
 
 mod accumulate;
+pub mod distortion;
 pub mod fft;
 mod fft_float;
 pub mod lattice;
@@ -33,6 +34,7 @@ mod padding;
 mod r2c;
 mod sampling;
 use sampling::shift_phase;
+pub mod relative_illumination;
 pub mod scene_band;
 pub mod space_variant;
 use scene_band::GridTaper;
@@ -981,19 +983,12 @@ impl Imager {
         out
     }
 
-    /// `e` multiplied by cos⁴θ (θ the off-axis angle of each detector pixel centre) if the
-    /// optics ask for it, else `e`.
+    /// `e` times the relative illumination ([`relative_illumination::map`]: cos⁴θ and the
+    /// `[optics.relative_illumination]` table), if the optics ask for one, else `e`.
     fn with_cos4(&self, mut e: Array2<f64>) -> Array2<f64> {
-        if !self.sensor.optics.cos4 {
-            return e;
-        }
-        let (rows, cols) = e.dim();
-        let d = self.sensor.ifov_rad();
-        for ((r, c), v) in e.indexed_iter_mut() {
-            let y = (r as f64 - (rows as f64 - 1.0) / 2.0) * d;
-            let x = (c as f64 - (cols as f64 - 1.0) / 2.0) * d;
-            let cos2 = 1.0 / (1.0 + x * x + y * y);
-            *v *= cos2 * cos2;
+        // Sensor::build validated the table, so building the map cannot fail here.
+        if let Ok(Some(m)) = relative_illumination::map(&self.sensor, e.nrows(), e.ncols()) {
+            e *= &m;
         }
         e
     }

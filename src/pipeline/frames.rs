@@ -133,6 +133,16 @@ pub(super) fn image_and_expose(
     progress: &mut dyn FnMut(usize, usize),
     consumer: &mut dyn FrameConsumer,
 ) -> Result<FramesDone> {
+    // `[optics.distortion]`: every band is read resampled (imaging::distortion).
+    let mut distorted;
+    let reader: &mut dyn CubeReader =
+        match crate::imaging::distortion::resampler_for(job.sensor, job.stage.sampling())? {
+            Some(r) => {
+                distorted = crate::imaging::distortion::DistortedReader::new(reader, r);
+                &mut distorted
+            }
+            None => reader,
+        };
     let threads = rayon::current_num_threads();
     let to_image = if job.input_frames == 1 {
         1

@@ -27,6 +27,7 @@
 pub mod calibrate;
 pub mod colour;
 pub mod expose;
+pub mod field_pictures;
 pub mod focal_plane;
 pub mod frames;
 pub mod image;

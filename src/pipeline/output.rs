@@ -231,7 +231,7 @@ impl ProductWriter {
 
     /// Writes the products of the whole run once every frame was written: the HDF5
     /// bundle (feature `hdf5`), a sequence's animated preview and `dn_stack.npy`,
-    /// `los.csv`, the focal plane's truth, `config.toml`, `instance.json`, `report.json`,
+    /// `los.csv`, the focal plane's truth, `distortion.csv` (with `[optics.distortion]`), `config.toml`, `instance.json`, `report.json`,
     /// the pictures and `report.html`. Returns every path written, the frames' first.
     ///
     /// Errors: fewer frames written than the run has, I/O.
@@ -267,6 +267,13 @@ impl ProductWriter {
         }
         if let Some(truth) = run.focal_plane {
             self.written.extend(truth.write(&dir)?);
+        }
+        let distortion = run.sensor.optics.distortion.as_ref();
+        if let Some(law) = distortion.filter(|d| !d.is_identity()) {
+            let p = dir.join("distortion.csv");
+            let text = crate::imaging::distortion::truth_csv(run.sensor, law);
+            crate::io::atomic_write(&p, |w| crate::io::write_all(w, text.as_bytes(), &p))?;
+            self.written.push(p);
         }
         let p = dir.join("config.toml");
         let text = run.sensor.to_toml_string()?;

@@ -81,6 +81,10 @@ pub struct RunPictures {
     /// `spectral_response.png`: filter, optics, quantum efficiency, atmosphere and their
     /// product (absent when the sensor's band is unbounded).
     pub spectral: Option<Picture>,
+    /// `psf_grid.png` and `field_mtf.png`: the PSFs and the tangential/sagittal MTF at
+    /// field heights 0, 0.7 and 1 (a sensor with `[optics.wavefront]`,
+    /// [`super::field_pictures`]).
+    pub field: Vec<Picture>,
 }
 
 impl RunPictures {
@@ -167,6 +171,7 @@ impl RunPictures {
             None => None,
         };
         let spectral = spectral_response(out.sensor)?;
+        let field = field_optics(out.sensor, optics.mean_wavelength_um)?;
         Ok(RunPictures {
             dn,
             dn_stretch,
@@ -176,6 +181,7 @@ impl RunPictures {
             trajectory,
             nuc_drift,
             spectral,
+            field,
         })
     }
 
@@ -188,6 +194,7 @@ impl RunPictures {
         v.push(&self.histogram);
         v.extend(self.trajectory.as_ref());
         v.extend(self.nuc_drift.as_ref());
+        v.extend(self.field.iter());
         v
     }
 
@@ -202,6 +209,30 @@ impl RunPictures {
         }
         Ok(written)
     }
+}
+
+/// The field pictures of a sensor with `[optics.wavefront]` at the mean wavelength.
+fn field_optics(
+    sensor: &crate::sensor::Sensor,
+    wavelength_um: Option<f64>,
+) -> Result<Vec<Picture>> {
+    use super::field_pictures::{field_mtf_png, psf_grid_png, PSF_DECADES, REPORT_FIELDS};
+    let (Some(l), Some(_)) = (wavelength_um, sensor.optics.wavefront.as_ref()) else {
+        return Ok(Vec::new());
+    };
+    let (grid, transfers) = psf_grid_png(sensor.config(), &REPORT_FIELDS, l, 8.0)?;
+    Ok(vec![
+        Picture {
+            file_name: "psf_grid.png",
+            png: grid,
+            caption: format!("pupil PSF ([optics.wavefront]) at {l:.3} µm and field heights 0, 0.7, 1 (1 = array corner, field along +y, tangential axis up); each ±8 λ/D, normalised to its peak, log10 stretch over {PSF_DECADES} decades (inferno)"),
+        },
+        Picture {
+            file_name: "field_mtf.png",
+            png: field_mtf_png(&transfers, &REPORT_FIELDS, l)?,
+            caption: format!("tangential (T) and sagittal (S) pupil MTF at field heights 0, 0.7, 1, {l:.3} µm, up to the cutoff D/λ (the pupil alone: no detector, motion or atmosphere)"),
+        },
+    ])
 }
 
 /// Points of the spectral-response plot.

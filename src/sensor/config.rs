@@ -39,6 +39,7 @@ use crate::error::{require_in_range, require_non_negative, require_positive, Err
 pub(crate) use crate::spectrum::resolve_path as resolve;
 pub use crate::spectrum::SpectrumConfig;
 
+pub use super::optics_config::OpticsConfig;
 pub use crate::detector::config::DetectorConfig;
 
 pub(crate) fn yes() -> bool {
@@ -49,30 +50,8 @@ pub(crate) fn is_true(v: &bool) -> bool {
     *v
 }
 
-fn unit_spectrum() -> SpectrumConfig {
+pub(crate) fn unit_spectrum() -> SpectrumConfig {
     SpectrumConfig::Constant { value: 1.0 }
-}
-
-/// `[optics]`: the lens.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct OpticsConfig {
-    /// Effective focal length, m.
-    pub focal_length_m: f64,
-    /// F-number N = focal length / entrance-pupil diameter.
-    pub f_number: f64,
-    /// Central obscuration ratio R = obscuration diameter / aperture diameter (0 = clear).
-    #[serde(default)]
-    pub obscuration_ratio: f64,
-    /// Spectral transmission of the optics.
-    #[serde(default = "unit_spectrum")]
-    pub transmission: SpectrumConfig,
-    /// Apply the cos⁴θ off-axis irradiance fall-off.
-    #[serde(default)]
-    pub cos4: bool,
-    /// `[optics.wavefront]` (docs/wavefront.md): `eoir psf`, `eoir mtf --field`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub wavefront: Option<super::wavefront::WavefrontConfig>,
 }
 
 /// `[diffraction]`: the aperture (clear or obscured, from `[optics]`). On by default.
@@ -477,6 +456,7 @@ impl SensorConfig {
             ));
         }
         super::wavefront::validate(o)?;
+        super::field_optics::validate(o.relative_illumination.as_ref(), o.distortion.as_ref())?;
         let d = &self.detector;
         // The detector instance holds about eight per-pixel f64 maps (FPN, dark, defects,
         // calibration) besides the frames checked per run (crate::limits::check_run).

@@ -2,13 +2,16 @@
 //! [`crate::detector::config`]), the embedded presets ([`presets`]), the cascade of
 //! transfer functions it implies ([`otf`]), and the resolved [`Sensor`] that every stage of
 //! a run takes ([`resolved`]: built once, validated, every referenced file read once), and
-//! the optional `[optics.wavefront]` table ([`wavefront`]).
+//! the optional `[optics.wavefront]` table ([`wavefront`]), and the `[optics]` table
+//! ([`optics_config`]) with relative illumination and distortion ([`field_optics`]).
 //!
 //! The cascade lives here rather than in `optics` because it combines optics, atmosphere
 //! and motion terms as one sensor description configures them; `optics`, `atmosphere` and
 //! `motion` hold only the pure component functions.
 
 pub mod config;
+pub mod field_optics;
+pub mod optics_config;
 pub mod otf;
 pub mod presets;
 pub mod resolved;

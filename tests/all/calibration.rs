@@ -289,13 +289,14 @@ fn cos4_rolloff_is_flattened_by_the_nuc() {
     let cal = Calibration::new(&s, &model, &inst, &CalibrationOptions::default()).unwrap();
     let (raw, cor) = cal.residual_nonuniformity(&inst, 310.0).unwrap();
     assert!(cor * 10.0 < raw, "raw {raw} corrected {cor}");
-    // The scene as the imaging engine delivers it: uniform radiance × cos⁴θ per pixel.
+    // The scene as the imaging engine delivers it: uniform radiance × cos⁴θ per pixel ×
+    // the preset's vignetting table (the engine's map, checked against cos⁴θ and the
+    // table in tests/all/field_optics.rs).
     let e = cal.blackbody_electrons(300.0).unwrap();
-    let d = s.ifov_rad();
-    let mean_e = Array2::from_shape_fn((64, 80), |(r, c)| {
-        let (y, x) = ((r as f64 - 31.5) * d, (c as f64 - 39.5) * d);
-        e / (1.0 + x * x + y * y).powi(2)
-    });
+    let ri = eoir::imaging::relative_illumination::map(&s, 64, 80)
+        .unwrap()
+        .unwrap();
+    let mean_e = ri.mapv(|v| e * v);
     let corrected = cal
         .correct(inst.expose(&mean_e, 1).unwrap().view())
         .unwrap();

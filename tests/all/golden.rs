@@ -101,7 +101,9 @@ const GOLDEN: &[(&str, &[&str], &str, usize, u64)] = &[
         1,
         0xef43cc8477085e3d,
     ),
-    ("emerald", &[], "thermal", 1, 0x772e173c63f5f796),
+    // Re-recorded for issue 36 (relative illumination): Emerald now has cos⁴θ and an
+    // ASSUMED vignetting table (sensors/emerald.toml, docs/field-optics.md).
+    ("emerald", &[], "thermal", 1, 0x8256e10b01012a64),
     ("qwip", &[], "bars", 1, 0xcdcc5a5c2c307ddb),
     ("ccd", &[], "thermal", 1, 0x893a0aa174fb647f),
     (

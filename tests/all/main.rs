@@ -14,6 +14,7 @@ mod detector;
 mod docs;
 mod edge_mtf;
 mod edge_mtf_cli;
+mod field_optics;
 mod focal_plane_run;
 mod focal_plane_traps;
 mod frames_parallel;
