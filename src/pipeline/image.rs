@@ -289,8 +289,8 @@ impl ImagingStage {
     }
 }
 
-/// Adds the timings and band count of `s` to `total` (the padded shape and precision are
-/// the same for every channel and frame of a run).
+/// Adds the timings and band count of `s` to `total` (the padded shape, precision and
+/// wavefront zones are the same for every channel and frame of a run).
 pub fn add_stats(total: &mut ImagingStats, s: &ImagingStats) {
     total.read_s += s.read_s;
     total.fft_s += s.fft_s;
@@ -299,4 +299,7 @@ pub fn add_stats(total: &mut ImagingStats, s: &ImagingStats) {
     total.bands_used += s.bands_used;
     total.padded_shape = s.padded_shape;
     total.precision = s.precision;
+    if s.wavefront.is_some() {
+        total.wavefront.clone_from(&s.wavefront);
+    }
 }

@@ -86,9 +86,9 @@ fn every_preset_and_option_combination_loads_and_validates() {
         let defaults: Vec<String> = p.defaults.iter().map(|(k, v)| format!("{k}={v}")).collect();
         assert_eq!(presets::load(&p.name, &defaults, &[]).unwrap(), plain);
     }
-    // 4 filters x 2 optics x 2 sequence clocks + 3 bands + 1 + 3 channels + 1
-    // + 3 channels x 2 shutters.
-    assert_eq!(count, 16 + 3 + 1 + 3 + 1 + 6);
+    // 4 filters x 3 optics (15mm, 15mm-aberrated, 100mm) x 2 sequence clocks + 3 bands x 2
+    // lenses + 1 + 3 channels + 1 + 3 channels x 2 shutters.
+    assert_eq!(count, 24 + 6 + 1 + 3 + 1 + 6);
 }
 
 #[test]
