@@ -34,7 +34,7 @@ use ndarray::{Array2, Axis};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::io::{BandPlanes, CubeReader, DeferredCheck};
+use crate::io::CubeReader;
 use crate::scene::CubeMeta;
 use crate::sensor::field_optics::DistortionConfig;
 use crate::sensor::Sensor;
@@ -235,16 +235,6 @@ where
         let out = planes.iter().map(|p| self.resampler.apply(p)).collect();
         self.inner.recycle(planes);
         out
-    }
-    fn read_planes(&mut self, frame: usize, bands: &[usize]) -> Result<BandPlanes> {
-        self.read_bands(frame, bands).map(BandPlanes::Owned)
-    }
-    fn read_planes_deferred(
-        &mut self,
-        frame: usize,
-        bands: &[usize],
-    ) -> Result<(BandPlanes, Option<DeferredCheck>)> {
-        Ok((self.read_planes(frame, bands)?, None))
     }
     fn warnings(&self) -> Vec<String> {
         self.inner.warnings()

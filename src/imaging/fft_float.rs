@@ -90,19 +90,27 @@ pub trait FftFloat: FftNum + Copy {
     }
 }
 
+/// The [`FftFloat`] planning methods, the same body for f32 and f64: each a monomorphic
+/// function of this crate (`#[inline(never)]`), see [`FftFloat::plan_complex`].
+macro_rules! plans_in_this_crate {
+    () => {
+        #[inline(never)]
+        fn plan_complex(n: usize, direction: FftDirection) -> Arc<dyn Fft<Self>> {
+            FftPlanner::new().plan_fft(n, direction)
+        }
+        #[inline(never)]
+        fn plan_real_forward(n: usize) -> Arc<dyn RealToComplex<Self>> {
+            RealFftPlanner::new().plan_fft_forward(n)
+        }
+        #[inline(never)]
+        fn plan_real_inverse(n: usize) -> Arc<dyn ComplexToReal<Self>> {
+            RealFftPlanner::new().plan_fft_inverse(n)
+        }
+    };
+}
+
 impl FftFloat for f32 {
-    #[inline(never)]
-    fn plan_complex(n: usize, direction: FftDirection) -> Arc<dyn Fft<Self>> {
-        FftPlanner::new().plan_fft(n, direction)
-    }
-    #[inline(never)]
-    fn plan_real_forward(n: usize) -> Arc<dyn RealToComplex<Self>> {
-        RealFftPlanner::new().plan_fft_forward(n)
-    }
-    #[inline(never)]
-    fn plan_real_inverse(n: usize) -> Arc<dyn ComplexToReal<Self>> {
-        RealFftPlanner::new().plan_fft_inverse(n)
-    }
+    plans_in_this_crate!();
     fn all_physical(values: &[Self]) -> bool {
         crate::scene::radiance_is_physical(values)
     }
@@ -149,18 +157,7 @@ impl FftFloat for f32 {
 }
 
 impl FftFloat for f64 {
-    #[inline(never)]
-    fn plan_complex(n: usize, direction: FftDirection) -> Arc<dyn Fft<Self>> {
-        FftPlanner::new().plan_fft(n, direction)
-    }
-    #[inline(never)]
-    fn plan_real_forward(n: usize) -> Arc<dyn RealToComplex<Self>> {
-        RealFftPlanner::new().plan_fft_forward(n)
-    }
-    #[inline(never)]
-    fn plan_real_inverse(n: usize) -> Arc<dyn ComplexToReal<Self>> {
-        RealFftPlanner::new().plan_fft_inverse(n)
-    }
+    plans_in_this_crate!();
     #[inline]
     fn nearest_from_f64(x: f64) -> Self {
         x

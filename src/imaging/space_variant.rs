@@ -660,17 +660,16 @@ fn relative_difference(a: &Array2<f64>, b: &Array2<f64>) -> f64 {
 
 /// `w_b · C_b(f)` on the half plane `[fy][fx]`: the spectral weight times the rest of the
 /// cascade (achromatic product with the scene-grid taper, and the chromatic components
-/// left beside the pupil: turbulence, aerosol).
-fn cascade_rest(imager: &Imager, wavelength_um: f64, weight: f64) -> Vec<f64> {
+/// left beside the pupil: turbulence, aerosol), written into `out` (reused across bands).
+fn cascade_rest(imager: &Imager, wavelength_um: f64, weight: f64, out: &mut Vec<f64>) {
     let profile = imager.band_profile(wavelength_um);
     let (ny, hc) = imager.fft.spectrum_shape();
-    let mut out = vec![0.0; ny * hc];
+    out.resize(ny * hc, 0.0);
     out.par_chunks_mut(hc).enumerate().for_each(|(v, row)| {
         for (u, o) in row.iter_mut().enumerate() {
             *o = weight * imager.radial.achromatic(u, v) * profile.eval(imager.radial.rho(u, v));
         }
     });
-    out
 }
 
 /// Images frame `frame` through the zones (the engine's [`Imager::with_spectrum`] when
@@ -700,6 +699,7 @@ pub(super) fn image_with_zones<R>(
     let mut acc = vec![Complex64::new(0.0, 0.0); ny * hc];
     let mut spec = Array2::<Complex64>::zeros((ny, hc));
     let mut scratch = Vec::new();
+    let mut rest = Vec::new();
     let tent_y: Vec<Vec<f64>> = (0..g)
         .map(|i| {
             (0..ny)
@@ -725,7 +725,12 @@ pub(super) fn image_with_zones<R>(
         })?;
         stats.read_s += t0.elapsed().as_secs_f64();
         let lambda = imager.weights.wavelength_um[b];
-        let rest = cascade_rest(imager, lambda, imager.weights.electrons_per_unit[b]);
+        cascade_rest(
+            imager,
+            lambda,
+            imager.weights.electrons_per_unit[b],
+            &mut rest,
+        );
         let node = field.node_of(lambda);
         for k in 0..g * g {
             let (ty, tx) = (&tent_y[k / g], &tent_x[k % g]);
@@ -813,6 +818,7 @@ pub fn direct_summation(
         padding: 2,
     };
     let reference_m = field.model.reference_wavelength_m();
+    let mut rest = Vec::new();
     for &b in &imager.weights.active_bands() {
         let planes = reader.read_planes(frame, &[b])?;
         let views = planes.views();
@@ -820,7 +826,12 @@ pub fn direct_summation(
             continue;
         };
         let lambda = imager.weights.wavelength_um[b];
-        let rest = cascade_rest(imager, lambda, imager.weights.electrons_per_unit[b]);
+        cascade_rest(
+            imager,
+            lambda,
+            imager.weights.electrons_per_unit[b],
+            &mut rest,
+        );
         for ((r, c), &l) in plane.indexed_iter() {
             if l == 0.0 {
                 continue;
