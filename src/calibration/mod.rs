@@ -453,10 +453,18 @@ fn reference_temperatures(
 /// The defects [`bad_pixels::detect`] finds on the coldest and hottest level averages
 /// (the calibration's bad-pixel map unites them with the pixels the NUC fit could not
 /// determine and those clipped at any level).
+///
+/// With relative illumination (`cos4`: cos⁴θ, the vignetting table, distortion's area
+/// ratio) a level's pixels differ by design: each average is first moved by the ideal
+/// pixel's own difference, `a − DN(e·m) + DN(e)` (the model's mean DN of a pixel receiving
+/// e·m electrons against e), so the tests see only the instance's departures from the
+/// ideal pixel. Without this, a vignetted corner (4 % below the centre) reads as a cluster
+/// of low-gain pixels and converts to NaN.
 fn detected_defects(
     chain: &Chain,
     averages: &[(f64, f64, Array2<f64>)],
     frames: usize,
+    cos4: Option<&Array2<f64>>,
 ) -> Result<BadPixelMap> {
     let coldest = averages.iter().min_by(|a, b| a.0.total_cmp(&b.0));
     let hottest = averages.iter().max_by(|a, b| a.0.total_cmp(&b.0));
@@ -478,7 +486,20 @@ fn detected_defects(
         min_sigma,
         ..BadPixelCriteria::default()
     };
-    Ok(bad_pixels::detect(coldest.2.view(), hottest.2.view(), &criteria)?.map)
+    let flattened = |(t_k, _, avg): &(f64, f64, Array2<f64>)| -> Result<Array2<f64>> {
+        let Some(m) = cos4 else {
+            return Ok(avg.clone());
+        };
+        let e = chain.electrons_exact(*t_k);
+        let uniform = model.expected_dn(e);
+        let mut out = avg.clone();
+        Zip::from(&mut out)
+            .and(m)
+            .for_each(|a, &f| *a += uniform - model.expected_dn(e * f));
+        Ok(out)
+    };
+    let (dark, bright) = (flattened(coldest)?, flattened(hottest)?);
+    Ok(bad_pixels::detect(dark.view(), bright.view(), &criteria)?.map)
 }
 
 /// The DN table on `lut_range_k` trimmed to where DN* rises, and the in-band radiance
@@ -623,7 +644,7 @@ impl Calibration {
         // The defect tests need the level averages only, not the fit: side by side.
         let (nuc, defects) = rayon::join(
             || NucCoefficients::fit(&levels, opts.degree),
-            || detected_defects(&chain, &averages, m),
+            || detected_defects(&chain, &averages, m, cos4.as_ref()),
         );
         let nuc = nuc?;
         let bad = defects?

@@ -157,6 +157,43 @@ fn relative_illumination_is_cos4_times_the_table_and_the_calibration_sees_it() {
     );
 }
 
+/// A mild vignetting table confined to the corners (Emerald's: 0.99 at H = 0.7, 0.96 at
+/// the corner) on a 120 × 160 array: the calibration's defect tests must not take the
+/// vignetted corners for a cluster of low-gain pixels (they did, and the corners of a
+/// calibrated run converted to NaN): a uniform 300 K scene reads 300 K everywhere.
+#[test]
+fn vignetted_corners_are_not_defects_to_the_calibration() {
+    let (rows, cols) = (120, 160);
+    let s = sensor(
+        rows,
+        cols,
+        0.05,
+        "cos4 = true\n[optics.relative_illumination]\nfield_heights = [0.0, 0.7, 1.0]\nfactors = [1.0, 0.99, 0.96]",
+    );
+    let k = 2;
+    let c = cube(uniform(rows * k, cols * k), s.ifov_rad() / k as f64);
+    let out = pipeline::run(
+        &s,
+        &mut MemoryCube::new(c),
+        &RunOptions::default(),
+        |_, _| {},
+    )
+    .unwrap();
+    let t = out.frames[0].temperature.as_ref().unwrap();
+    let nan = t.iter().filter(|v| v.is_nan()).count();
+    assert_eq!(nan, 0, "{nan} pixels of a uniform scene did not convert");
+    let corners = [
+        t[[0, 0]],
+        t[[0, cols - 1]],
+        t[[rows - 1, 0]],
+        t[[rows - 1, cols - 1]],
+    ];
+    let middle = t[[rows / 2, cols / 2]];
+    for v in corners {
+        assert!((v - middle).abs() < 0.5, "corner {v} K, middle {middle} K");
+    }
+}
+
 /// Point sources (σ = 1 scene sample) on a 5 × 5 grid land where the law `H_real = H (1 + k1 H² + k2 H⁴)` puts
 /// them (centroid within 0.05 px, predicted here from the law directly); each keeps its
 /// flux (within 2e-2, see below); a uniform scene shows exactly the area ratio 1/J the calibration
