@@ -101,6 +101,8 @@ struct Case {
     setup: Vec<f64>,
     imaging: Vec<f64>,
     zones: usize,
+    nodes: usize,
+    samples: usize,
     choice: String,
     error: f64,
 }
@@ -154,6 +156,8 @@ fn main() {
         setup: Vec::new(),
         imaging: Vec::new(),
         zones: 0,
+        nodes: 0,
+        samples: 0,
         choice: String::new(),
         error: 0.0,
     })
@@ -172,6 +176,8 @@ fn main() {
         c.setup.push(setup);
         if let Some(r) = im.wavefront_report() {
             c.zones = r.zones;
+            c.nodes = r.wavelength_nodes;
+            c.samples = r.pupil_samples_across;
             c.choice = r.zone_choice.clone();
             c.error = r.point_source_error_of_peak;
         } else {
@@ -223,9 +229,12 @@ fn main() {
     }
     let a_run = total(&cases[0]);
     println!(
-        "(b)/(a): run {:.2}, imaging {:.2}; (c) zone choice: {}",
+        "(b)/(a): run {:.2}, imaging {:.2}; (c) zone choice: {}; wavelength nodes (b) {}, (c) {}; pupil samples across (c) {}",
         b_run / a_run,
         b_img / median(cases[0].imaging.clone()),
-        cases[2].choice
+        cases[2].choice,
+        cases[1].nodes,
+        cases[2].nodes,
+        cases[2].samples
     );
 }

@@ -339,7 +339,7 @@ mod lookup_tests {
 
     /// A 40 × 40 F/2 MWIR camera (25 mm, 15 µm: the frame reaches a third of the pupil
     /// cutoff, so the tables are cropped) with coma and astigmatism over 2 × 2 zones.
-    fn imager() -> Imager {
+    fn imager() -> (Imager, CubeMeta) {
         let text = r#"
 name = "lookup"
 [optics]
@@ -373,13 +373,40 @@ pupil_samples_across = 64
             rows: 48,
             cols: 48,
         };
-        Imager::new(
+        let im = Imager::new(
             &sensor,
             &meta,
             &meta.geometry.unwrap(),
             DEFAULT_WRAP_TOLERANCE,
         )
-        .unwrap()
+        .unwrap();
+        (im, meta)
+    }
+
+    /// The zones' image (separable row passes, per-band taps, rows in parallel) is the
+    /// same to the bit on 1 and 3 worker threads.
+    #[test]
+    fn zones_give_the_same_bits_for_any_number_of_threads() {
+        let (im, meta) = imager();
+        let data = ndarray::Array3::from_shape_fn((4, 48, 48), |(b, r, c)| {
+            let (r, c, b) = (r as f32, c as f32, b as f32);
+            let point = if r == 20.0 && c == 30.0 { 500.0 } else { 0.0 };
+            10.0 + 3.0 * (0.31 * r + 0.17 * c + b).cos() + point
+        });
+        let cube = crate::scene::Cube::new(data, meta).unwrap();
+        let run = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| {
+                    let mut reader = crate::io::MemoryCube::new(cube.clone());
+                    im.mean_electrons(&mut reader, 0, |_, _| {}).unwrap().0
+                })
+        };
+        let one = run(1);
+        assert!(one.sum() > 0.0);
+        assert_eq!(one, run(3));
     }
 
     /// The cropped tables hold the pupil OTF at every frequency of the frame: each zone's
@@ -388,7 +415,7 @@ pupil_samples_across = 64
     /// per-band taps give [`FieldOptics::otf_at`] (the per-sample lookup) to the bit.
     #[test]
     fn cropped_tables_and_band_taps_are_the_pupil_otf() {
-        let im = imager();
+        let (im, _) = imager();
         let field = im.field.as_ref().unwrap();
         let g = field.per_axis;
         assert_eq!(g, 2);
