@@ -294,6 +294,31 @@ impl HalfPlaneOtf {
         HalfPlaneOtf { window, data }
     }
 
+    /// The table of the zone mirrored across the field's vertical axis (`flip_x`: the
+    /// pupil and PSF mirrored in x, `OTF(−X, Y) = conj OTF(X, −Y)` for a real PSF) and/or
+    /// its horizontal axis (`flip_y`: `OTF(X, −Y)`); both: `conj OTF(X, Y)`. Row r of the
+    /// grid is at −Y in row m − r, which the window holds (it is symmetric about m/2 to
+    /// within its margin); row 0 (Y = −padding/2, beyond the cutoff) mirrors to 0.
+    fn mirrored(&self, flip_x: bool, flip_y: bool) -> Self {
+        if !flip_x && !flip_y {
+            return self.clone();
+        }
+        let w = self.window;
+        let mut data = vec![Complex32::new(0.0, 0.0); self.data.len()];
+        for i in 0..w.rows {
+            let r = w.row0 + i;
+            let from = if flip_x != flip_y { w.m - r } else { r };
+            if from < w.row0 || from >= w.row0 + w.rows {
+                continue;
+            }
+            let src = &self.data[(from - w.row0) * w.width..][..w.width];
+            for (o, v) in data[i * w.width..][..w.width].iter_mut().zip(src) {
+                *o = if flip_x { v.conj() } else { *v };
+            }
+        }
+        HalfPlaneOtf { window: w, data }
+    }
+
     /// Bilinear interpolation between the taps `row` and `col`: the four weighted samples
     /// summed in a fixed order.
     #[inline]
@@ -410,8 +435,9 @@ pupil_samples_across = 64
     }
 
     /// The cropped tables hold the pupil OTF at every frequency of the frame: each zone's
-    /// table at each wavelength node equals the bilinear interpolation of the full pupil
-    /// OTF grid ([`PupilTransfer::at_cy_per_rad`], f64) within f32 rounding, and the
+    /// table at each wavelength node (three of the four mirror images of the first)
+    /// equals the bilinear interpolation of the full pupil OTF grid of the zone's own
+    /// wavefront ([`PupilTransfer::at_cy_per_rad`], f64) within f32 rounding, and the
     /// per-band taps give [`FieldOptics::otf_at`] (the per-sample lookup) to the bit.
     #[test]
     fn cropped_tables_and_band_taps_are_the_pupil_otf() {
@@ -419,6 +445,8 @@ pupil_samples_across = 64
         let field = im.field.as_ref().unwrap();
         let g = field.per_axis;
         assert_eq!(g, 2);
+        // One zone computed, three mirrored: the comparison below checks the mirrors.
+        assert_eq!(field.computed_zones, 1);
         let w = field.window;
         assert!(w.width < w.cols && w.rows < w.m / 2, "{w:?}");
         let (fx, fy) = (&im.grid.fx, &im.grid.fy);
@@ -493,6 +521,8 @@ pub struct FieldOptics {
     window: TableWindow,
     /// `otfs[k][j]`: zone k (row-major over the grid) at node j.
     otfs: Vec<Vec<HalfPlaneOtf>>,
+    /// Zones whose tables were computed from the pupil (the others are mirror images).
+    computed_zones: usize,
     report: WavefrontImagingReport,
 }
 
@@ -544,6 +574,7 @@ impl FieldOptics {
             node_scale: Vec::new(),
             window: TableWindow::new(1, 2, 0.0, 0.0),
             otfs: Vec::new(),
+            computed_zones: 0,
             report: WavefrontImagingReport {
                 zones_per_axis: 1,
                 zones: 1,
@@ -672,7 +703,26 @@ impl FieldOptics {
             largest(&grid.fy) * scale,
         );
         let window = fo.window;
+        // Mirror symmetry: the zone centres are symmetric about the axis, and the Seidel
+        // terms are even in the local sagittal coordinate, so with a mirror-symmetric
+        // aperture (no spider vanes) and no Zernike terms the zone mirrored across the
+        // field's vertical (horizontal) axis has the pupil mirrored in x (y) and its OTF
+        // mirrored: only the zones of one quadrant are computed ([`HalfPlaneOtf::mirrored`]).
+        let symmetric = fo.pupil.is_radially_symmetric()
+            && locals.iter().all(|(t, f)| {
+                t.zernike_rms_waves.iter().all(|c| *c == 0.0)
+                    && f.zernike_rms_waves.iter().all(|c| *c == 0.0)
+            });
+        let source = |k: usize| -> (usize, bool, bool) {
+            let (i, j) = (k / g, k % g);
+            if !symmetric {
+                return (k, false, false);
+            }
+            let (si, sj) = (i.min(g - 1 - i), j.min(g - 1 - j));
+            (si * g + sj, si != i, sj != j)
+        };
         let jobs: Vec<(usize, usize)> = (0..g * g)
+            .filter(|&k| source(k).0 == k)
             .flat_map(|k| (0..fo.node_scale.len()).map(move |j| (k, j)))
             .collect();
         let computed: Vec<HalfPlaneOtf> = jobs
@@ -693,9 +743,19 @@ impl FieldOptics {
             .collect::<Result<Vec<_>>>()?;
         let nodes = fo.node_scale.len();
         let mut it = computed.into_iter();
-        fo.otfs = (0..g * g)
-            .map(|_| it.by_ref().take(nodes).collect())
+        let own: Vec<Option<Vec<HalfPlaneOtf>>> = (0..g * g)
+            .map(|k| (source(k).0 == k).then(|| it.by_ref().take(nodes).collect()))
             .collect();
+        fo.otfs = (0..g * g)
+            .map(|k| {
+                let (from, flip_y, flip_x) = source(k);
+                own[from]
+                    .as_ref()
+                    .map(|tables| tables.iter().map(|t| t.mirrored(flip_x, flip_y)).collect())
+                    .unwrap_or_default()
+            })
+            .collect();
+        fo.computed_zones = own.iter().filter(|t| t.is_some()).count();
         Ok(Some(fo))
     }
 
