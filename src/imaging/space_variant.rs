@@ -176,54 +176,333 @@ impl FieldFrame {
     }
 }
 
-/// One zone's OTF at one wavelength node on the half plane X ≥ 0 (normalised frequency
-/// X = f/f_c, f_c = D/λ): element `(r, c)` at `X = c/n`, `Y = (r − m/2)/n`, f32.
-#[derive(Debug, Clone, PartialEq)]
-struct HalfPlaneOtf {
+/// The part of the zones' common OTF grid (normalised frequency, `n` pupil samples across,
+/// `m × m` grid, half plane `cols = m/2 + 1` columns from X = 0) that the frame's
+/// frequencies reach at the longest wavelength in use: rows `row0 .. row0 + rows`, columns
+/// `0 .. width`. Only this window is stored: at F/2 in the MWIR on a 0.6 mrad grid it is a
+/// ninth of the grid, which keeps K zones × their wavelength nodes small and in cache.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct TableWindow {
     n: usize,
     m: usize,
     cols: usize,
+    row0: usize,
+    rows: usize,
+    width: usize,
+}
+
+impl TableWindow {
+    /// The window of an `n`-across, `m × m` grid holding every bilinear tap of the
+    /// normalised frequencies |X| ≤ `reach_x`, |Y| ≤ `reach_y` (two samples of margin).
+    fn new(n: usize, m: usize, reach_x: f64, reach_y: f64) -> Self {
+        let cols = m / 2 + 1;
+        let nf = n as f64;
+        let half = (m / 2) as f64;
+        let clamp = |v: f64, hi: usize| {
+            if v.is_finite() {
+                (v.max(0.0) as usize).min(hi)
+            } else {
+                hi
+            }
+        };
+        let width = clamp((reach_x * nf).ceil() + 2.0, cols);
+        let row0 = clamp((half - reach_y * nf).floor() - 2.0, m);
+        let end = clamp((half + reach_y * nf).ceil() + 3.0, m);
+        TableWindow {
+            n,
+            m,
+            cols,
+            row0,
+            rows: end.saturating_sub(row0),
+            width,
+        }
+    }
+
+    /// Bilinear tap along the columns at X ≥ 0 (`c = X n`); `None` beyond the grid (the
+    /// OTF is 0 there) or beyond the window.
+    #[inline]
+    fn column_tap(&self, x: f64) -> Option<Tap> {
+        let c = x * self.n as f64;
+        if !(c >= 0.0 && c <= (self.cols - 1) as f64) {
+            return None;
+        }
+        let c0 = c as usize;
+        let c1 = (c0 + 1).min(self.cols - 1);
+        let t = (c - c0 as f64) as f32;
+        (c1 < self.width).then_some(Tap {
+            i0: c0,
+            i1: c1,
+            w0: 1.0 - t,
+            w1: t,
+        })
+    }
+
+    /// Bilinear tap along the rows at Y (`r = Y n + m/2`), row indices relative to the
+    /// window's first row; `None` beyond the grid or the window.
+    #[inline]
+    fn row_tap(&self, y: f64) -> Option<Tap> {
+        let r = y * self.n as f64 + (self.m / 2) as f64;
+        if !(r >= 0.0 && r <= (self.m - 1) as f64) {
+            return None;
+        }
+        let r0 = r as usize;
+        let r1 = (r0 + 1).min(self.m - 1);
+        let t = (r - r0 as f64) as f32;
+        (r0 >= self.row0 && r1 < self.row0 + self.rows).then_some(Tap {
+            i0: r0 - self.row0,
+            i1: r1 - self.row0,
+            w0: 1.0 - t,
+            w1: t,
+        })
+    }
+}
+
+/// One axis of a bilinear interpolation: the two neighbouring indices and their weights
+/// (`1 − t`, `t`, f32 as the tables).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Tap {
+    i0: usize,
+    i1: usize,
+    w0: f32,
+    w1: f32,
+}
+
+/// One zone's OTF at one wavelength node on the half plane X ≥ 0 (normalised frequency
+/// X = f/f_c, f_c = D/λ): grid element `(r, c)` at `X = c/n`, `Y = (r − m/2)/n`, f32, the
+/// [`TableWindow`] of it only.
+#[derive(Debug, Clone, PartialEq)]
+struct HalfPlaneOtf {
+    window: TableWindow,
     data: Vec<Complex32>,
 }
 
 impl HalfPlaneOtf {
-    fn from_transfer(t: &PupilTransfer) -> Self {
+    fn from_transfer(t: &PupilTransfer, window: TableWindow) -> Self {
         let g = t.otf_grid();
         let m = g.nrows();
-        let n = t.sampling().samples_across;
-        let cols = m / 2 + 1;
-        let mut data = vec![Complex32::new(0.0, 0.0); m * cols];
-        for r in 0..m {
-            for c in 0..cols {
+        debug_assert_eq!((window.m, window.n), (m, t.sampling().samples_across));
+        let mut data = vec![Complex32::new(0.0, 0.0); window.rows * window.width];
+        for (i, r) in (window.row0..window.row0 + window.rows).enumerate() {
+            for c in 0..window.width {
                 let cc = m / 2 + c;
                 if cc < m {
                     let v = g[(r, cc)];
-                    data[r * cols + c] = Complex32::new(v.re as f32, v.im as f32);
+                    data[i * window.width + c] = Complex32::new(v.re as f32, v.im as f32);
                 }
             }
         }
-        HalfPlaneOtf { n, m, cols, data }
+        HalfPlaneOtf { window, data }
     }
 
-    /// Bilinear interpolation at (X ≥ 0, Y); 0 beyond the grid.
+    /// The table of the zone mirrored across the field's vertical axis (`flip_x`: the
+    /// pupil and PSF mirrored in x, `OTF(−X, Y) = conj OTF(X, −Y)` for a real PSF) and/or
+    /// its horizontal axis (`flip_y`: `OTF(X, −Y)`); both: `conj OTF(X, Y)`. Row r of the
+    /// grid is at −Y in row m − r, which the window holds (it is symmetric about m/2 to
+    /// within its margin); row 0 (Y = −padding/2, beyond the cutoff) mirrors to 0.
+    fn mirrored(&self, flip_x: bool, flip_y: bool) -> Self {
+        if !flip_x && !flip_y {
+            return self.clone();
+        }
+        let w = self.window;
+        let mut data = vec![Complex32::new(0.0, 0.0); self.data.len()];
+        for i in 0..w.rows {
+            let r = w.row0 + i;
+            let from = if flip_x != flip_y { w.m - r } else { r };
+            if from < w.row0 || from >= w.row0 + w.rows {
+                continue;
+            }
+            let src = &self.data[(from - w.row0) * w.width..][..w.width];
+            for (o, v) in data[i * w.width..][..w.width].iter_mut().zip(src) {
+                *o = if flip_x { v.conj() } else { *v };
+            }
+        }
+        HalfPlaneOtf { window: w, data }
+    }
+
+    /// Bilinear interpolation between the taps `row` and `col`: the four weighted samples
+    /// summed in a fixed order.
+    #[inline]
+    fn tapped(&self, row: Tap, col: Tap) -> Complex32 {
+        let w = self.window.width;
+        let (a, b) = (row.i0 * w, row.i1 * w);
+        let d = &self.data;
+        d[a + col.i0] * (col.w0 * row.w0)
+            + d[a + col.i1] * (col.w1 * row.w0)
+            + d[b + col.i0] * (col.w0 * row.w1)
+            + d[b + col.i1] * (col.w1 * row.w1)
+    }
+
+    /// Bilinear interpolation at (X ≥ 0, Y); 0 beyond the grid (and beyond the stored
+    /// window, which the frame's frequencies do not reach).
     #[inline]
     fn at(&self, x: f64, y: f64) -> Complex64 {
-        let n = self.n as f64;
-        let c = x * n;
-        let r = y * n + (self.m / 2) as f64;
-        if !(c >= 0.0 && r >= 0.0 && c <= (self.cols - 1) as f64 && r <= (self.m - 1) as f64) {
-            return Complex64::new(0.0, 0.0);
+        match (self.window.row_tap(y), self.window.column_tap(x)) {
+            (Some(r), Some(c)) => {
+                let v = self.tapped(r, c);
+                Complex64::new(v.re as f64, v.im as f64)
+            }
+            _ => Complex64::new(0.0, 0.0),
         }
-        let (c0, r0) = (c as usize, r as usize);
-        let (c1, r1) = ((c0 + 1).min(self.cols - 1), (r0 + 1).min(self.m - 1));
-        let (tc, tr) = ((c - c0 as f64) as f32, (r - r0 as f64) as f32);
-        let d = &self.data;
-        let w = self.cols;
-        let v = d[r0 * w + c0] * ((1.0 - tc) * (1.0 - tr))
-            + d[r0 * w + c1] * (tc * (1.0 - tr))
-            + d[r1 * w + c0] * ((1.0 - tc) * tr)
-            + d[r1 * w + c1] * (tc * tr);
-        Complex64::new(v.re as f64, v.im as f64)
+    }
+}
+
+/// The bilinear taps of one band on the frame's half-plane grid: the table column depends
+/// only on fx (`X = fx λ/D`) and the row only on fy, so they are computed once per band
+/// (`rows.len()` + `cols.len()` taps) and shared by every zone and wavelength node.
+#[derive(Debug, Clone, PartialEq)]
+struct BandTaps {
+    rows: Vec<Option<Tap>>,
+    cols: Vec<Option<Tap>>,
+}
+
+#[cfg(test)]
+mod lookup_tests {
+    use super::*;
+    use crate::imaging::DEFAULT_WRAP_TOLERANCE;
+    use crate::scene::{CubeMeta, Geometry, RadianceUnits};
+    use crate::sensor::SensorConfig;
+
+    /// A 40 × 40 F/2 MWIR camera (25 mm, 15 µm: the frame reaches a third of the pupil
+    /// cutoff, so the tables are cropped) with coma and astigmatism over 2 × 2 zones.
+    fn imager() -> (Imager, CubeMeta) {
+        let text = r#"
+name = "lookup"
+[optics]
+focal_length_m = 0.025
+f_number = 2.0
+[filter]
+kind = "top_hat"
+lo_um = 3.6
+hi_um = 4.8
+[detector]
+rows = 40
+cols = 40
+pitch_m = 15e-6
+active_width_m = 14e-6
+integration_time_s = 1e-3
+quantum_efficiency = { kind = "ideal_qe", peak = 0.7, cutoff_um = 5.0 }
+[optics.wavefront]
+reference_wavelength_um = 4.0
+w131_waves = 0.3
+w222_waves = 0.3
+zones_per_axis = 2
+pupil_samples_across = 64
+"#;
+        let c = SensorConfig::from_toml_str(text, "test", ".".into(), &[]).unwrap();
+        let sensor = Sensor::build(&c).unwrap();
+        let meta = CubeMeta {
+            wavelength_um: vec![3.5, 4.0, 4.4, 4.9],
+            fwhm_um: None,
+            units: RadianceUnits::SpectralPerUm,
+            geometry: Some(Geometry::from_ifov(6e-4, 6e-4, 48, 48)),
+            rows: 48,
+            cols: 48,
+        };
+        let im = Imager::new(
+            &sensor,
+            &meta,
+            &meta.geometry.unwrap(),
+            DEFAULT_WRAP_TOLERANCE,
+        )
+        .unwrap();
+        (im, meta)
+    }
+
+    /// The zones' image (separable row passes, per-band taps, rows in parallel) is the
+    /// same to the bit on 1 and 3 worker threads.
+    #[test]
+    fn zones_give_the_same_bits_for_any_number_of_threads() {
+        let (im, meta) = imager();
+        let data = ndarray::Array3::from_shape_fn((4, 48, 48), |(b, r, c)| {
+            let (r, c, b) = (r as f32, c as f32, b as f32);
+            let point = if r == 20.0 && c == 30.0 { 500.0 } else { 0.0 };
+            10.0 + 3.0 * (0.31 * r + 0.17 * c + b).cos() + point
+        });
+        let cube = crate::scene::Cube::new(data, meta).unwrap();
+        let run = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| {
+                    let mut reader = crate::io::MemoryCube::new(cube.clone());
+                    im.mean_electrons(&mut reader, 0, |_, _| {}).unwrap().0
+                })
+        };
+        let one = run(1);
+        assert!(one.sum() > 0.0);
+        assert_eq!(one, run(3));
+    }
+
+    /// The cropped tables hold the pupil OTF at every frequency of the frame: each zone's
+    /// table at each wavelength node (three of the four mirror images of the first)
+    /// equals the bilinear interpolation of the full pupil OTF grid of the zone's own
+    /// wavefront ([`PupilTransfer::at_cy_per_rad`], f64) within f32 rounding, and the
+    /// per-band taps give [`FieldOptics::otf_at`] (the per-sample lookup) to the bit.
+    #[test]
+    fn cropped_tables_and_band_taps_are_the_pupil_otf() {
+        let (im, _) = imager();
+        let field = im.field.as_ref().unwrap();
+        let g = field.per_axis;
+        assert_eq!(g, 2);
+        // One zone computed, three mirrored: the comparison below checks the mirrors.
+        assert_eq!(field.computed_zones, 1);
+        let w = field.window;
+        assert!(w.width < w.cols && w.rows < w.m / 2, "{w:?}");
+        let (fx, fy) = (&im.grid.fx, &im.grid.fy);
+        let reference_m = field.model.reference_wavelength_m();
+        let mut largest = 0.0f64;
+        for k in 0..g * g {
+            let (row, col) = (
+                field.frame.node(0, (k / g) as f64, g),
+                field.frame.node(1, (k % g) as f64, g),
+            );
+            let (h, az) = field.frame.field_point(row, col);
+            let (turning, fixed) = field.wavefront_at(h);
+            for (j, s) in field.node_scale.iter().enumerate() {
+                let lambda_m = reference_m / s;
+                let t = PupilTransfer::compute_at_azimuth(
+                    &field.pupil,
+                    &turning,
+                    &fixed,
+                    az,
+                    reference_m,
+                    lambda_m,
+                    field.diameter_m,
+                    Sampling {
+                        samples_across: field.report.pupil_samples_across,
+                        padding: 2,
+                    },
+                )
+                .unwrap();
+                for &y in fy {
+                    for &x in fx {
+                        let want = t.at_cy_per_rad(x, y);
+                        let got = field.otf_at(k, (j, 0.0), x, y, lambda_m * 1e6);
+                        assert!((got - want).norm() <= 1e-6, "{k} {j} {x} {y}: {got} {want}");
+                        largest = largest.max(want.norm().min(1.0 - want.norm()));
+                    }
+                }
+            }
+        }
+        // The frame reaches well into the OTF (not only its DC peak or zeros).
+        assert!(largest > 0.3, "{largest}");
+        for &lambda in &im.weights.wavelength_um {
+            let node = field.node_of(lambda);
+            let taps = field.band_taps(fx, fy, lambda);
+            for k in 0..g * g {
+                for (v, &y) in fy.iter().enumerate() {
+                    for (u, &x) in fx.iter().enumerate() {
+                        let want = field.otf_at(k, node, x, y, lambda);
+                        let got = match (taps.rows[v], taps.cols[u]) {
+                            (Some(r), Some(c)) => field.tapped(k, node, r, c),
+                            _ => Complex64::new(0.0, 0.0),
+                        };
+                        assert_eq!(got, want, "{lambda} {k} {u} {v}");
+                    }
+                }
+            }
+        }
     }
 }
 
@@ -238,8 +517,12 @@ pub struct FieldOptics {
     per_axis: usize,
     /// Phase scales s = λ_ref/λ of the nodes, increasing.
     node_scale: Vec<f64>,
+    /// The stored window of every zone's tables (all share the pupil sampling).
+    window: TableWindow,
     /// `otfs[k][j]`: zone k (row-major over the grid) at node j.
     otfs: Vec<Vec<HalfPlaneOtf>>,
+    /// Zones whose tables were computed from the pupil (the others are mirror images).
+    computed_zones: usize,
     report: WavefrontImagingReport,
 }
 
@@ -289,7 +572,9 @@ impl FieldOptics {
             frame,
             per_axis: 1,
             node_scale: Vec::new(),
+            window: TableWindow::new(1, 2, 0.0, 0.0),
             otfs: Vec::new(),
+            computed_zones: 0,
             report: WavefrontImagingReport {
                 zones_per_axis: 1,
                 zones: 1,
@@ -402,7 +687,42 @@ impl FieldOptics {
             padding: 2,
         };
         fo.report.pupil_samples_across = samples;
+        // The frame's largest |fx| and |fy| at the longest wavelength, in X = fλ/D.
+        let grid = crate::sensor::FrequencyGrid::real_fft(
+            sampling.y.padded_len,
+            sampling.x.padded_len,
+            sampling.scene_ifov_rad.0,
+            sampling.scene_ifov_rad.1,
+        );
+        let largest = |f: &[f64]| f.iter().fold(0.0, |m: f64, v| m.max(v.abs()));
+        let scale = hi_um * 1e-6 / diameter_m;
+        fo.window = TableWindow::new(
+            samples,
+            samples * pupil_sampling.padding,
+            largest(&grid.fx) * scale,
+            largest(&grid.fy) * scale,
+        );
+        let window = fo.window;
+        // Mirror symmetry: the zone centres are symmetric about the axis, and the Seidel
+        // terms are even in the local sagittal coordinate, so with a mirror-symmetric
+        // aperture (no spider vanes) and no Zernike terms the zone mirrored across the
+        // field's vertical (horizontal) axis has the pupil mirrored in x (y) and its OTF
+        // mirrored: only the zones of one quadrant are computed ([`HalfPlaneOtf::mirrored`]).
+        let symmetric = fo.pupil.is_radially_symmetric()
+            && locals.iter().all(|(t, f)| {
+                t.zernike_rms_waves.iter().all(|c| *c == 0.0)
+                    && f.zernike_rms_waves.iter().all(|c| *c == 0.0)
+            });
+        let source = |k: usize| -> (usize, bool, bool) {
+            let (i, j) = (k / g, k % g);
+            if !symmetric {
+                return (k, false, false);
+            }
+            let (si, sj) = (i.min(g - 1 - i), j.min(g - 1 - j));
+            (si * g + sj, si != i, sj != j)
+        };
         let jobs: Vec<(usize, usize)> = (0..g * g)
+            .filter(|&k| source(k).0 == k)
             .flat_map(|k| (0..fo.node_scale.len()).map(move |j| (k, j)))
             .collect();
         let computed: Vec<HalfPlaneOtf> = jobs
@@ -418,14 +738,24 @@ impl FieldOptics {
                     diameter_m,
                     pupil_sampling,
                 )?;
-                Ok(HalfPlaneOtf::from_transfer(&t))
+                Ok(HalfPlaneOtf::from_transfer(&t, window))
             })
             .collect::<Result<Vec<_>>>()?;
         let nodes = fo.node_scale.len();
         let mut it = computed.into_iter();
-        fo.otfs = (0..g * g)
-            .map(|_| it.by_ref().take(nodes).collect())
+        let own: Vec<Option<Vec<HalfPlaneOtf>>> = (0..g * g)
+            .map(|k| (source(k).0 == k).then(|| it.by_ref().take(nodes).collect()))
             .collect();
+        fo.otfs = (0..g * g)
+            .map(|k| {
+                let (from, flip_y, flip_x) = source(k);
+                own[from]
+                    .as_ref()
+                    .map(|tables| tables.iter().map(|t| t.mirrored(flip_x, flip_y)).collect())
+                    .unwrap_or_default()
+            })
+            .collect();
+        fo.computed_zones = own.iter().filter(|t| t.is_some()).count();
         Ok(Some(fo))
     }
 
@@ -583,7 +913,10 @@ impl FieldOptics {
     }
 
     /// Zone k's OTF at angular frequency (fx ≥ 0, fy) cycles/rad for a band at
-    /// `wavelength_um`: the wavelength nodes interpolated linearly in s = λ_ref/λ.
+    /// `wavelength_um`: the wavelength nodes interpolated linearly in s = λ_ref/λ. (The
+    /// imaging loop uses [`FieldOptics::band_taps`] and [`FieldOptics::tapped`], the same
+    /// arithmetic with the taps computed once per band.)
+    #[cfg_attr(not(test), allow(dead_code))]
     fn otf_at(
         &self,
         k: usize,
@@ -600,6 +933,36 @@ impl FieldOptics {
             a
         } else {
             a * (1.0 - t) + self.otfs[k][j + 1].at(x, y) * t
+        }
+    }
+
+    /// The bilinear taps of a band at `wavelength_um` on the half-plane grid `fx` (≥ 0),
+    /// `fy` (cycles/rad): the same normalised frequencies `X = fx λ/D`, `Y = fy λ/D` as
+    /// [`FieldOptics::otf_at`], computed once per band instead of once per sample, zone
+    /// and node.
+    fn band_taps(&self, fx: &[f64], fy: &[f64], wavelength_um: f64) -> BandTaps {
+        let scale = wavelength_um * 1e-6 / self.diameter_m;
+        BandTaps {
+            rows: fy.iter().map(|f| self.window.row_tap(f * scale)).collect(),
+            cols: fx
+                .iter()
+                .map(|f| self.window.column_tap(f * scale))
+                .collect(),
+        }
+    }
+
+    /// Zone k's OTF between the taps `row` and `col` of a band in node bracket `node`:
+    /// [`FieldOptics::otf_at`] at the frequency the taps were made for, to the bit.
+    #[inline]
+    fn tapped(&self, k: usize, node: (usize, f64), row: Tap, col: Tap) -> Complex64 {
+        let (j, t) = node;
+        let v = self.otfs[k][j].tapped(row, col);
+        let a = Complex64::new(v.re as f64, v.im as f64);
+        if t == 0.0 {
+            a
+        } else {
+            let v = self.otfs[k][j + 1].tapped(row, col);
+            a * (1.0 - t) + Complex64::new(v.re as f64, v.im as f64) * t
         }
     }
 
@@ -678,6 +1041,13 @@ fn cascade_rest(imager: &Imager, wavelength_um: f64, weight: f64, out: &mut Vec<
 /// the cascade, and added; then `finish` on the band-summed spectrum (transposed layout).
 /// Bands and zones in a fixed order, each sample by one worker: the same result for any
 /// number of threads.
+///
+/// Cost (docs/field-optics.md, "Speed"). The tents are separable, `t_k = t_i(y) t_j(x)`,
+/// and a row transform is linear, so the row spectra of `t_k ⊙ L` are those of
+/// `t_j(x) ⊙ L` scaled row by row by `t_i(y)`: per band g row passes (not g²) and g²
+/// column passes. The OTF lookups use taps computed once per band
+/// ([`FieldOptics::band_taps`]). With one zone the band is transformed as before, with no
+/// tent.
 pub(super) fn image_with_zones<R>(
     imager: &Imager,
     field: &FieldOptics,
@@ -714,6 +1084,12 @@ pub(super) fn image_with_zones<R>(
                 .collect()
         })
         .collect();
+    // The row spectra of the band weighted by each column tent (g > 1).
+    let mut by_column_tent: Vec<Vec<Complex64>> = if g > 1 {
+        vec![vec![Complex64::new(0.0, 0.0); ny * hc]; g]
+    } else {
+        Vec::new()
+    };
     let fx = &imager.grid.fx;
     let fy = &imager.grid.fy;
     for (done, &b) in active.iter().enumerate() {
@@ -732,32 +1108,69 @@ pub(super) fn image_with_zones<R>(
             &mut rest,
         );
         let node = field.node_of(lambda);
+        let taps = field.band_taps(fx, fy, lambda);
+        // Columns beyond the last tap are beyond the OTF's support (fx grows with u).
+        let u_end = taps
+            .cols
+            .iter()
+            .rposition(Option::is_some)
+            .map_or(0, |u| u + 1);
+        let t1 = Instant::now();
+        if g > 1 {
+            by_column_tent
+                .par_iter_mut()
+                .zip(&tent_x)
+                .for_each(|(out, tx)| {
+                    imager.fft.rows_forward(
+                        |r, row: &mut [f64]| {
+                            imager.pad.row(plane, r, row);
+                            for (v, wx) in row.iter_mut().zip(tx) {
+                                *v *= wx;
+                            }
+                        },
+                        out,
+                    )
+                });
+        }
+        stats.fft_s += t1.elapsed().as_secs_f64();
         for k in 0..g * g {
-            let (ty, tx) = (&tent_y[k / g], &tent_x[k % g]);
             let t1 = Instant::now();
-            imager.fft.forward_rows(
-                |r, row: &mut [f64]| {
-                    imager.pad.row(plane, r, row);
-                    if g > 1 {
-                        let wy = ty[r];
-                        for (v, wx) in row.iter_mut().zip(tx) {
-                            *v *= wy * wx;
+            if g == 1 {
+                imager.fft.forward_rows(
+                    |r, row: &mut [f64]| imager.pad.row(plane, r, row),
+                    &mut spec,
+                    &mut scratch,
+                );
+            } else {
+                let (ty, rows) = (&tent_y[k / g], &by_column_tent[k % g]);
+                let s = spec.as_slice_mut().expect("standard layout");
+                s.par_chunks_mut(hc)
+                    .zip(rows.par_chunks(hc))
+                    .zip(ty.par_iter())
+                    .for_each(|((o, i), &wy)| {
+                        if wy == 0.0 {
+                            o.fill(Complex64::new(0.0, 0.0));
+                        } else {
+                            for (o, i) in o.iter_mut().zip(i) {
+                                *o = i * wy;
+                            }
                         }
-                    }
-                },
-                &mut spec,
-                &mut scratch,
-            );
+                    });
+                imager.fft.columns_in_place(s, false);
+            }
             let t2 = Instant::now();
             let s = spec.as_slice().expect("standard layout");
             acc.par_chunks_mut(hc)
                 .zip(s.par_chunks(hc))
                 .zip(rest.par_chunks(hc))
-                .enumerate()
-                .for_each(|(v, ((a, sp), c))| {
-                    for u in 0..hc {
-                        if c[u] != 0.0 {
-                            a[u] += sp[u] * c[u] * field.otf_at(k, node, fx[u], fy[v], lambda);
+                .zip(taps.rows.par_iter())
+                .for_each(|(((a, sp), c), row)| {
+                    let Some(row) = *row else {
+                        return;
+                    };
+                    for (u, col) in taps.cols[..u_end].iter().enumerate() {
+                        if let (Some(col), true) = (col, c[u] != 0.0) {
+                            a[u] += sp[u] * c[u] * field.tapped(k, node, row, *col);
                         }
                     }
                 });
