@@ -173,7 +173,10 @@ impl DistortionLaw {
     /// The table law through the points (`h`, `real`) (checked by the caller: at least
     /// two, from (0, 0), both strictly increasing): Fritsch–Butland slopes inside (the
     /// weighted harmonic mean of the neighbouring secants, which keeps the interpolant
-    /// monotone), the one-sided secants at the ends.
+    /// monotone); at H = 0 the first secant (the centred difference of the odd law
+    /// `H_real(−H) = −H_real(H)`); at the last point the three-point one-sided formula
+    /// kept within [secant/3, 3·secant]; then Fritsch & Carlson's limit (α² + β² ≤ 9 on
+    /// every interval) so the cubic stays increasing.
     fn table(h: Vec<f64>, real: Vec<f64>) -> Self {
         let n = h.len();
         let step: Vec<f64> = (0..n - 1).map(|i| h[i + 1] - h[i]).collect();
@@ -183,9 +186,23 @@ impl DistortionLaw {
         let mut slope = vec![0.0; n];
         slope[0] = secant[0];
         slope[n - 1] = secant[n - 2];
+        if n > 2 {
+            let (a, b) = (step[n - 2], step[n - 3]);
+            let (sa, sb) = (secant[n - 2], secant[n - 3]);
+            let end = ((2.0 * a + b) * sa - a * sb) / (a + b);
+            slope[n - 1] = end.clamp(sa / 3.0, 3.0 * sa);
+        }
         for i in 1..n - 1 {
             let (w1, w2) = (2.0 * step[i] + step[i - 1], step[i] + 2.0 * step[i - 1]);
             slope[i] = (w1 + w2) / (w1 / secant[i - 1] + w2 / secant[i]);
+        }
+        for i in 0..n - 1 {
+            let (alpha, beta) = (slope[i] / secant[i], slope[i + 1] / secant[i]);
+            let norm = alpha.hypot(beta);
+            if norm > 3.0 {
+                slope[i] = 3.0 * alpha / norm * secant[i];
+                slope[i + 1] = 3.0 * beta / norm * secant[i];
+            }
         }
         DistortionLaw::Table { h, real, slope }
     }
@@ -506,9 +523,10 @@ mod tests {
     }
 
     /// The table form: a table sampled from a k1, k2 law every 0.1 in H reproduces that
-    /// law (the cubic Hermite interpolant's error is O(step⁴) for a smooth law: within
-    /// 2e-6 in H_real and 2e-4 in the Jacobian), inverts to 1e-12, converts mm by the
-    /// corner height, and bad tables are refused with the field and index named.
+    /// law (within 5e-4 in H_real and 2e-2 in the Jacobian up to H = 2, where the law
+    /// bends most; 3e-3 in the Jacobian up to H = 1.2: the interpolant's slopes are
+    /// estimated from the table's secants), inverts to 1e-12, converts mm by the corner
+    /// height, and bad tables are refused with the field and index named.
     #[test]
     fn a_height_table_is_the_law_it_samples_and_bad_tables_are_refused() {
         let poly = DistortionConfig {
@@ -527,15 +545,23 @@ mod tests {
         };
         assert!(!table.is_identity());
         let law = table.law(1.0).unwrap();
-        let (mut dv, mut dj): (f64, f64) = (0.0, 0.0);
+        let (mut dv, mut dj, mut dj_inner): (f64, f64, f64) = (0.0, 0.0, 0.0);
         for i in 0..=400 {
             let x = i as f64 * 0.005;
             dv = dv.max((law.real(x) - poly.real(x)).abs());
-            dj = dj.max((law.jacobian(x) - poly.jacobian(x)).abs());
+            let e = (law.jacobian(x) - poly.jacobian(x)).abs();
+            dj = dj.max(e);
+            if x <= 1.2 {
+                dj_inner = dj_inner.max(e);
+            }
             let back = law.paraxial(law.real(x)).unwrap();
             assert!((back - x).abs() < 1e-12, "{x} {back}");
         }
-        assert!(dv < 2e-6 && dj < 2e-4, "{dv} {dj}");
+        println!("table vs k1, k2: H_real {dv:.2e}, J {dj:.2e} (to H = 1.2: {dj_inner:.2e})");
+        assert!(
+            dv < 5e-4 && dj < 2e-2 && dj_inner < 3e-3,
+            "{dv} {dj} {dj_inner}"
+        );
         // In mm with a 0.5 mm corner: the same law.
         let mm = DistortionConfig {
             paraxial_heights_mm: Some(h.iter().map(|v| v * 0.5).collect()),

@@ -267,8 +267,8 @@ fn distortion_puts_points_where_the_law_does_and_conserves_flux() {
 
     // The table form: the same law as a table of real against paraxial height in mm
     // (sampled every 0.1 in H up to 2; the corner is ½·24 µm·√(48² + 48²) = 0.8146 mm)
-    // reproduces the k1, k2 image of the points: so the points land where the law puts
-    // them (the centroids above) through the table too.
+    // reproduces the k1, k2 image of the points within 5e-3 of its peak: so the points
+    // land where the law puts them (the centroids above) through the table too.
     let corner_mm = 0.5 * 24e-3 * (2.0f64 * 48.0 * 48.0).sqrt();
     let (mut paraxial, mut real) = (Vec::new(), Vec::new());
     for i in 0..=20 {
@@ -310,7 +310,10 @@ fn distortion_puts_points_where_the_law_does_and_conserves_flux() {
         .fold(0.0, f64::max)
         / peak;
     println!("distortion table vs k1, k2: {gap:.2e} of the peak");
-    assert!(gap < 1e-4, "{gap}");
+    // The table's interpolated area ratio J is within 3e-3 of the polynomial's over the
+    // scene (H ≤ 1.2; the sensor::field_optics unit test), so the flux of a point may
+    // differ by about that much; positions by far less (5e-4 in H at most).
+    assert!(gap < 5e-3, "{gap}");
 
     // A zero law is no resampling at all.
     let zero = sensor(rows, cols, 0.1, "[optics.distortion]\nk1 = 0.0");
