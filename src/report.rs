@@ -522,7 +522,7 @@ impl RunReport {
             warnings: f.warnings,
             focal_plane: None,
             figures_of_merit: None,
-            wavefront_imaging: f.imaging.wavefront.clone(),
+            wavefront_imaging: f.imaging.wavefront.as_deref().cloned(),
             execution: f.execution,
             timings_s: Timings {
                 read: f.imaging.read_s,

@@ -37,6 +37,7 @@ use sampling::shift_phase;
 pub mod relative_illumination;
 pub mod scene_band;
 pub mod space_variant;
+pub mod zone_error;
 use scene_band::GridTaper;
 mod transpose;
 mod workspace;
@@ -258,7 +259,7 @@ pub struct ImagingStats {
     /// Precision of the forward transforms.
     pub precision: FftPrecision,
     /// The zones and errors of `[optics.wavefront]` imaging ([`space_variant`]), if any.
-    pub wavefront: Option<space_variant::WavefrontImagingReport>,
+    pub wavefront: Option<Box<space_variant::WavefrontImagingReport>>,
 }
 
 /// A configured imaging chain for one sensor and one input geometry: reusable across the
@@ -426,7 +427,7 @@ impl Imager {
             || RadialTables::covering(rest.as_ref().unwrap_or(&otf), lo, hi, grid.rho_max()),
         );
         let field = space_variant::FieldOptics::new(sensor, &sampling, &active)?;
-        Ok(Imager {
+        let mut imager = Imager {
             sensor: sensor.clone(),
             otf,
             weights,
@@ -443,7 +444,20 @@ impl Imager {
             taper,
             lattice,
             field,
-        })
+        };
+        // `optics.wavefront.measure_error`: the zones' error measured on this frame.
+        if sensor
+            .optics
+            .wavefront
+            .as_ref()
+            .is_some_and(|w| w.measure_error)
+        {
+            let (error, points) = zone_error::measure(&imager, meta)?;
+            if let Some(f) = imager.field.as_mut() {
+                f.set_measured_error(error, points);
+            }
+        }
+        Ok(imager)
     }
 
     /// How the row pass writes a band's spectrum: streaming when a chunk's f32 row spectra

@@ -79,6 +79,7 @@ pub fn calibration_map(sensor: &Sensor, rows: usize, cols: usize) -> Result<Opti
     let mut m = ri.unwrap_or_else(|| Array2::ones((rows, cols)));
     let pitch = sensor.detector.pitch_m;
     let corner = corner_height_m(sensor);
+    let d = d.law(corner)?;
     for ((r, c), v) in m.indexed_iter_mut() {
         let y = (r as f64 - (rows as f64 - 1.0) / 2.0) * pitch;
         let x = (c as f64 - (cols as f64 - 1.0) / 2.0) * pitch;

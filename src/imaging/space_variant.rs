@@ -90,6 +90,15 @@ pub struct WavefrontImagingReport {
     pub pupil_samples_across: usize,
     /// The field angle of H = 1 (the detector's half-diagonal), mrad.
     pub full_field_mrad: f64,
+    /// Measured on this run's frame when `optics.wavefront.measure_error = true`
+    /// ([`super::zone_error`]): the largest |zones − direct summation| over the detector
+    /// image of point sources at [`Self::measured_points`], as a fraction of the direct
+    /// image's peak, at the run's own bands; absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub measured_error_of_peak: Option<f64>,
+    /// The scene samples (row, col) of those point sources.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub measured_points: Vec<(usize, usize)>,
 }
 
 /// Field geometry of the padded FFT frame: where the zone centres are and the field
@@ -586,6 +595,8 @@ impl FieldOptics {
                 nodes_at_band_wavelengths: false,
                 pupil_samples_across: 0,
                 full_field_mrad: 0.0,
+                measured_error_of_peak: None,
+                measured_points: Vec::new(),
             },
         };
         fo.report.full_field_mrad = fo.frame.full_field_rad * 1e3;
@@ -804,6 +815,12 @@ impl FieldOptics {
     /// What `report.json` records.
     pub fn report(&self) -> &WavefrontImagingReport {
         &self.report
+    }
+
+    /// Records the error measured on sample point sources ([`super::zone_error`]).
+    pub(super) fn set_measured_error(&mut self, error_of_peak: f64, points: Vec<(usize, usize)>) {
+        self.report.measured_error_of_peak = Some(error_of_peak);
+        self.report.measured_points = points;
     }
 
     /// Zones per axis.
@@ -1061,7 +1078,7 @@ pub(super) fn image_with_zones<R>(
     let mut stats = ImagingStats {
         padded_shape: (ny, nx),
         precision: super::fft::FftPrecision::F64,
-        wavefront: Some(field.report.clone()),
+        wavefront: Some(Box::new(field.report.clone())),
         ..Default::default()
     };
     let active = imager.weights.active_bands();
@@ -1202,9 +1219,12 @@ fn transposed(acc: &[Complex64], ny: usize, hc: usize) -> Vec<Complex64> {
 /// position (its pupil OTF at its own H and azimuth, at each band's own wavelength, times
 /// the rest of the cascade), summed in the frequency domain
 /// (`E(f) = Σ_b w_b C_b(f) Σ_s L_b(s) e^{−2πi f·s} OTF(f; s, λ_b)`), then sampled onto the
-/// detector as the engine samples. Samples with zero radiance are skipped; the padding
-/// is not included, so scenes should be dark near their edges. One pupil computation per
-/// non-zero sample and band: for small images and tests only.
+/// detector as the engine samples. The sources are the samples of the padded frame the
+/// engine transforms ([`Imager::padded_band`]: the scene and the mirror extensions its
+/// padding adds beyond the scene's edges, each at its own field position, H held at 1
+/// beyond the field), so the reference and the engine image the same periodic frame.
+/// Samples with zero radiance are skipped. One pupil computation per non-zero sample and
+/// band: for small images and tests only.
 ///
 /// Errors: the imager has no `[optics.wavefront]`, or a reader error.
 pub fn direct_summation(
@@ -1222,10 +1242,6 @@ pub fn direct_summation(
     let (ny, hc) = imager.fft.spectrum_shape();
     let nx = imager.fft.shape().1;
     let mut acc = vec![Complex64::new(0.0, 0.0); ny * hc];
-    let (py, px) = (
-        imager.sampling.y.pad_before as f64,
-        imager.sampling.x.pad_before as f64,
-    );
     let sampling = Sampling {
         samples_across: field.report.pupil_samples_across,
         padding: 2,
@@ -1238,6 +1254,7 @@ pub fn direct_summation(
         let Some(plane) = views.first() else {
             continue;
         };
+        let frame_plane = imager.padded_band(plane.view());
         let lambda = imager.weights.wavelength_um[b];
         cascade_rest(
             imager,
@@ -1245,11 +1262,11 @@ pub fn direct_summation(
             imager.weights.electrons_per_unit[b],
             &mut rest,
         );
-        for ((r, c), &l) in plane.indexed_iter() {
+        for ((r, c), &l) in frame_plane.indexed_iter() {
             if l == 0.0 {
                 continue;
             }
-            let (row, col) = (py + r as f64, px + c as f64);
+            let (row, col) = (r as f64, c as f64);
             let (h, az) = field.frame.field_point(row, col);
             let (turning, fixed) = field.wavefront_at(h);
             let t = PupilTransfer::compute_at_azimuth(
@@ -1277,7 +1294,7 @@ pub fn direct_summation(
                         if cr[u] != 0.0 {
                             a[u] += ey[v]
                                 * ex[u]
-                                * (f64::from(l) * cr[u])
+                                * (l * cr[u])
                                 * t.at_cy_per_rad(grid.fx[u], grid.fy[v]);
                         }
                     }

@@ -271,7 +271,7 @@ impl ProductWriter {
         let distortion = run.sensor.optics.distortion.as_ref();
         if let Some(law) = distortion.filter(|d| !d.is_identity()) {
             let p = dir.join("distortion.csv");
-            let text = crate::imaging::distortion::truth_csv(run.sensor, law);
+            let text = crate::imaging::distortion::truth_csv(run.sensor, law)?;
             crate::io::atomic_write(&p, |w| crate::io::write_all(w, text.as_bytes(), &p))?;
             self.written.push(p);
         }

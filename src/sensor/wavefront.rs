@@ -170,6 +170,13 @@ pub struct WavefrontConfig {
     /// The most zones per axis the automatic choice may take (1..=16; default 6).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max_zones_per_axis: Option<usize>,
+    /// Measure the zones' error on this run's frame: point sources at a few field
+    /// positions (the middle, zone-cell centres, an edge midpoint, the corner) imaged
+    /// through the zones and by exact direct space-variant summation, the largest
+    /// difference reported in report.json (`wavefront_imaging.measured_error_of_peak`).
+    /// Slow (one pupil computation per point, mirror copy and band); default false.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub measure_error: bool,
 }
 
 /// Default [`WavefrontConfig::zone_tolerance`].
