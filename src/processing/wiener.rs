@@ -63,6 +63,12 @@
 //! its pads (under 0.1 % in the tests; `restore::restoration_of_a_bar_scene…`). The
 //! zero frequency is left out of the error estimate (every candidate treats it alike).
 //!
+//! **Clipped sources**: small clusters of clipped pixels are first filled from the PSF's
+//! wings ([`crate::processing::clipped_fill`]); the fill's prediction variance, summed
+//! over the filled pixels (the flat mean power per DFT coefficient of an error confined
+//! to them), is added to the noise power of the estimate's error term `W² P_n`, not to
+//! the noise subtracted from the object power.
+//!
 //! **Masks** ([`RestoreMasks`]): dead, hot, stuck and saturated pixels are left out of the
 //! noise estimate; defects must be replaced before filtering (the caller does so,
 //! [`crate::processing::bad_pixels::find_image_defects`]); saturated pixels keep their
