@@ -64,6 +64,12 @@ pub struct RunReport {
     pub sensor: String,
     /// Seed of every random effect.
     pub seed: u64,
+    /// Whether the run is an unblurred reference: no transfer function in the cascade
+    /// and no `[optics.wavefront]` (`eoir run --unblurred`, [`SensorConfig::unblurred`]
+    /// of the sensor), so each pixel samples the scene at its centre.
+    ///
+    /// [`SensorConfig::unblurred`]: crate::sensor::SensorConfig::unblurred
+    pub unblurred: bool,
     /// Hash of the resolved sensor ([`crate::calibration::instance::sensor_hash`]); with
     /// the seed it identifies the sensor instance (fixed pattern) of the DN.
     pub sensor_hash: String,
@@ -456,6 +462,7 @@ impl RunReport {
             eoir_version: env!("CARGO_PKG_VERSION").to_string(),
             sensor: sensor.name.clone(),
             seed: f.seed,
+            unblurred: otf.components().is_empty() && sensor.optics.wavefront.is_none(),
             sensor_hash: crate::calibration::instance::sensor_hash(sensor).unwrap_or_default(),
             input: InputReport {
                 name: f.input_name.to_string(),

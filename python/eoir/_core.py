@@ -367,6 +367,7 @@ def run(
     sequence_frames: Optional[int] = None,
     time_varying: bool = False,
     assess: bool = False,
+    unblurred: bool = False,
     as_dataset: bool = True,
 ):
     """Run radiance through a sensor: what ``eoir run`` computes, without files.
@@ -433,6 +434,11 @@ def run(
         Add the sensor's analytic figures of merit (``eoir run --assess``) to the report
         as ``report["figures_of_merit"]``: the same dict as ``eoir.assess(sensor,
         analytic_only=True)["analytic"]``.
+    unblurred : bool, default False
+        The unblurred reference ("truth image") of the run (``eoir run --unblurred``):
+        the run through :meth:`Sensor.unblurred`, every transfer function off (the
+        detector footprint and ``[optics.wavefront]`` included), so each pixel samples
+        the scene at its centre; ``report["unblurred"]`` is True.
     as_dataset : bool, default True
         Return an ``xarray.Dataset``; False returns a :class:`RunResult` of NumPy arrays.
 
@@ -459,6 +465,8 @@ def run(
     TypeError
         Complex or non-numeric radiance; a non-integer seed.
     """
+    if unblurred:
+        sensor = sensor.unblurred()
     dims, frame_dim, attrs_in = ("row", "col"), None, {}
     if isinstance(radiance, Cube):
         cube = radiance

@@ -119,6 +119,13 @@ impl PySensor {
     fn to_toml(&self) -> PyResult<String> {
         guarded(|| self.inner.to_toml_string())
     }
+    /// This sensor with every transfer function switched off (diffraction, the detector
+    /// footprint, aberration, defocus, motion, jitter, turbulence, aerosol, Gaussian,
+    /// measured MTF, and `[optics.wavefront]`): the unblurred reference of a run
+    /// (`SensorConfig::unblurred`, `eoir run --unblurred`).
+    fn unblurred(&self) -> PyResult<PySensor> {
+        guarded(|| Sensor::build(&self.inner.config().unblurred())).map(|inner| PySensor { inner })
+    }
     /// Short name.
     #[getter]
     fn name(&self) -> String {

@@ -294,3 +294,22 @@ def test_a_moving_camera_returns_its_truth_table(small_sensor, small_scene):
     assert not np.array_equal(r.electrons_mean[0], r.electrons_mean[1])
     ds = eoir.run(small_sensor, c, seed=4, frames=2, calibrate=False)
     np.testing.assert_allclose(ds["los_dx_px"].values, los["dx_px"])
+
+
+def test_unblurred_run_is_the_cli_unblurred_run(cli, small_scene, small_sensor, tmp_path):
+    """``run(..., unblurred=True)`` and ``Sensor.unblurred()`` are ``eoir run --unblurred``."""
+    scene = tmp_path / "scene.hdr"
+    eoir.write_cube(scene, small_scene)
+    out = tmp_path / "out"
+    sets = [a for k, v in SMALL.items() for a in ("--set", f"{k}={v}")]
+    subprocess.run(
+        [cli, "run", "--sensor", "multimir", *sets, "--unblurred", "--quiet", str(scene), "-o", str(out)],
+        check=True,
+    )
+    r = eoir.run(small_sensor, eoir.read_cube(scene), unblurred=True, as_dataset=False)
+    np.testing.assert_array_equal(r.dn, read_tiff_u16(out / "dn.tiff"))
+    assert r.report["unblurred"] is True and r.report["optics"]["components"] == []
+    u = small_sensor.unblurred()
+    assert "enabled = false" in u.to_toml()
+    blurred = eoir.run(small_sensor, eoir.read_cube(scene), calibrate=False, as_dataset=False)
+    assert blurred.report["unblurred"] is False

@@ -297,6 +297,7 @@ pub fn restore(args: RestoreArgs) -> Result<()> {
             "saturated_px": saturated.count(),
             "saturated_raised_px": r.saturated_raised,
             "saturated_filled_px": r.saturated_filled,
+            "saturated_fill_variance": r.saturated_fill_variance,
         },
         "noise_rule": r.rule,
         "method": r.method,

@@ -70,6 +70,13 @@ pub struct RunArgs {
     /// targets and the measured figures.
     #[arg(long)]
     assess: bool,
+    /// The unblurred reference ("truth image") of the run: every transfer function off
+    /// (diffraction, the detector footprint, aberration, defocus, motion, jitter,
+    /// turbulence, aerosol, Gaussian, measured MTF, and `[optics.wavefront]`), so each
+    /// pixel samples the scene at its centre through the same radiometry, noise and
+    /// gain; report.json says `"unblurred": true` (docs/way-back.md).
+    #[arg(long)]
+    unblurred: bool,
     /// No progress bar or summary.
     #[arg(long)]
     quiet: bool,
@@ -283,8 +290,15 @@ pub fn run(args: RunArgs) -> Result<()> {
         frames_in_flight: args.frames_in_flight.map(|n| n as usize),
         ..Default::default()
     };
+    let unblurred = |c: eoir::sensor::SensorConfig| {
+        if args.unblurred {
+            c.unblurred()
+        } else {
+            c
+        }
+    };
     if !args.composite {
-        let sensor = args.sensor.load()?;
+        let sensor = build(&unblurred(args.sensor.load_config()?))?;
         let set = ProductSet::begin(&args.output)?.replacing("run");
         run_file(
             &sensor,
@@ -333,7 +347,7 @@ pub fn run(args: RunArgs) -> Result<()> {
         let mut opts = args.sensor.option.clone();
         opts.retain(|o| !o.starts_with("channel="));
         opts.push(format!("channel={ch}"));
-        let sensor = presets::load(&args.sensor.sensor, &opts, &args.sensor.set)?;
+        let sensor = unblurred(presets::load(&args.sensor.sensor, &opts, &args.sensor.set)?);
         sensors.push((
             eoir::report::mean_wavelength_um(&build(&sensor)?)?,
             ch.clone(),

@@ -63,6 +63,12 @@
 //! its pads (under 0.1 % in the tests; `restore::restoration_of_a_bar_scene…`). The
 //! zero frequency is left out of the error estimate (every candidate treats it alike).
 //!
+//! **Clipped sources**: small clusters of clipped pixels are first filled from the PSF's
+//! wings ([`crate::processing::clipped_fill`]); the fill's prediction variance, summed
+//! over the filled pixels (the flat mean power per DFT coefficient of an error confined
+//! to them), is added to the noise power of the estimate's error term `W² P_n`, not to
+//! the noise subtracted from the object power.
+//!
 //! **Masks** ([`RestoreMasks`]): dead, hot, stuck and saturated pixels are left out of the
 //! noise estimate; defects must be replaced before filtering (the caller does so,
 //! [`crate::processing::bad_pixels::find_image_defects`]); saturated pixels keep their
@@ -320,6 +326,10 @@ pub struct Restoration {
     /// Clipped pixels whose value the filter saw raised to the fit of the PSF's wings
     /// around them ([`crate::processing::clipped_fill`]).
     pub saturated_filled: usize,
+    /// The fill's variance summed over the filled pixels (image units²,
+    /// [`crate::processing::clipped_fill::ClippedFill::fill_variance`]): extra noise power
+    /// per DFT coefficient in the error estimate.
+    pub saturated_fill_variance: f64,
     /// Padded FFT frame (rows, cols).
     pub padded_shape: (usize, usize),
 }
@@ -528,7 +538,7 @@ pub fn restore(
     }
     // Small clipped clusters: their blurred values estimated from the PSF's wings
     // (processing::clipped_fill), so that the filter does not see a clipped plateau.
-    let (filled, saturated_filled) = match masks.saturated {
+    let (filled, saturated_filled, fill_variance) = match masks.saturated {
         Some(m) if m.count() > 0 => {
             let mut hs = h.mapv(|v| Complex64::new(v, 0.0));
             let mut psf = Array2::<f64>::zeros((ny, nx));
@@ -539,9 +549,10 @@ pub fn restore(
                     dx.rem_euclid(nx as isize) as usize,
                 ]]
             };
-            fill_clipped(image, m, masks.noise, at)?
+            let fill = fill_clipped(image, m, masks.noise, at)?;
+            (fill.image, fill.raised, fill.fill_variance)
         }
-        _ => (image.to_owned(), 0),
+        _ => (image.to_owned(), 0, 0.0),
     };
     let (mut padded, py, px) = pad_image(filled.view(), ny, nx);
     fft.forward(&mut padded, &mut spec, &mut scratch);
@@ -587,7 +598,11 @@ pub fn restore(
                 })
                 .collect();
             let bins = restore_rule::bins(&measured, pn);
-            let mut choice = restore_rule::choose(&bins, pn, method, fit.is_some());
+            // The fill's own uncertainty (its prediction variance, an error confined to
+            // the filled pixels: flat power Σ var per DFT coefficient) is noise every
+            // filter amplifies; it enters the error term W²·P of the estimate, not the
+            // object power, which the filled image measures as it is.
+            let mut choice = restore_rule::choose(&bins, pn + fill_variance, method, fit.is_some());
             if method == Method::Auto && !transfer.shift_invariant() {
                 // A colour mosaic: no filter of one transfer function applies.
                 choice.name = "none";
@@ -670,6 +685,7 @@ pub fn restore(
         guarded_bins,
         saturated_raised,
         saturated_filled,
+        saturated_fill_variance: fill_variance,
         padded_shape: (ny, nx),
     })
 }

@@ -3,7 +3,8 @@
 //! transfer functions it implies ([`otf`]), and the resolved [`Sensor`] that every stage of
 //! a run takes ([`resolved`]: built once, validated, every referenced file read once), and
 //! the optional `[optics.wavefront]` table ([`wavefront`]), and the `[optics]` table
-//! ([`optics_config`]) with relative illumination and distortion ([`field_optics`]).
+//! ([`optics_config`]) with relative illumination and distortion ([`field_optics`]);
+//! [`SensorConfig::unblurred`] ([`unblurred`]) switches every transfer function off.
 //!
 //! The cascade lives here rather than in `optics` because it combines optics, atmosphere
 //! and motion terms as one sensor description configures them; `optics`, `atmosphere` and
@@ -15,6 +16,7 @@ pub mod optics_config;
 pub mod otf;
 pub mod presets;
 pub mod resolved;
+pub mod unblurred;
 pub mod wavefront;
 
 pub use config::MotionConfig;

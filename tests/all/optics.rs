@@ -778,3 +778,47 @@ fn defocus_without_diffraction_rolls_off_instead_of_stopping() {
             > 1e-3
     );
 }
+
+/// `SensorConfig::unblurred` (the library's one switch for the truth image, `eoir run
+/// --unblurred`) leaves no transfer function in the cascade and no `[optics.wavefront]`:
+/// on the test sensor with every section present plus a wavefront, and on every preset
+/// with every value of every option (the aberrated lenses carry a wavefront). The
+/// unblurred system passes every frequency at 1; the radiometry is unchanged.
+#[test]
+fn unblurred_switches_every_transfer_function_and_the_wavefront_off() {
+    let all = test_sensor(&[]);
+    let mut cfg = all.config().clone();
+    cfg.optics.wavefront =
+        Some(toml::from_str("reference_wavelength_um = 4.0\nw040_waves = 0.1").unwrap());
+    let u = eoir::sensor::Sensor::build(&cfg.unblurred()).unwrap();
+    assert!(u.otf().components().is_empty());
+    assert!(u.optics.wavefront.is_none());
+    for (fx, fy) in [(1000.0, 0.0), (7000.0, 4000.0)] {
+        assert_eq!(u.otf().evaluate(fx, fy, 4.7), 1.0);
+    }
+    assert_eq!(u.camera(), all.camera());
+    let mut checked = 0;
+    for p in eoir::sensor::presets::list() {
+        let mut choices: Vec<Vec<String>> = vec![vec![]];
+        for (name, values) in &p.options {
+            choices = choices
+                .iter()
+                .flat_map(|c| {
+                    values.iter().map(move |v| {
+                        let mut c = c.clone();
+                        c.push(format!("{name}={v}"));
+                        c
+                    })
+                })
+                .collect();
+        }
+        for opts in choices.iter().take(64) {
+            let c = eoir::sensor::presets::load(&p.name, opts, &[]).unwrap();
+            let u = eoir::sensor::Sensor::build(&c.unblurred()).unwrap();
+            assert!(u.otf().components().is_empty(), "{} {opts:?}", p.name);
+            assert!(u.optics.wavefront.is_none(), "{} {opts:?}", p.name);
+            checked += 1;
+        }
+    }
+    assert!(checked >= 6, "{checked}");
+}

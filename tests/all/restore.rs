@@ -399,42 +399,11 @@ impl eoir::processing::wiener::DetectorTransfer for CachedTransfer {
     }
 }
 
-/// The truth twin of a sensor: the same configuration with every transfer function
-/// switched off (`enabled = false` on diffraction and on every optics, motion and
-/// atmosphere section present, `detector.footprint_enabled = false`), so each detector
-/// pixel records the scene sampled at its centre, through the same radiometry and gain.
+/// The truth twin of a sensor: [`SensorConfig::unblurred`] (every transfer function off,
+/// the footprint and `[optics.wavefront]` included), so each detector pixel records the
+/// scene sampled at its centre, through the same radiometry and gain.
 fn truth_sensor(s: &Sensor) -> Sensor {
-    use eoir::sensor::config::TurbulenceConfig;
-    let mut u: SensorConfig = s.config().clone();
-    u.diffraction.enabled = false;
-    u.detector.footprint_enabled = false;
-    if let Some(x) = u.aberration.as_mut() {
-        x.enabled = false;
-    }
-    if let Some(x) = u.defocus.as_mut() {
-        x.enabled = false;
-    }
-    if let Some(x) = u.motion.as_mut() {
-        x.enabled = false;
-    }
-    if let Some(x) = u.jitter.as_mut() {
-        x.enabled = false;
-    }
-    if let Some(x) = u.aerosol.as_mut() {
-        x.enabled = false;
-    }
-    if let Some(x) = u.gaussian.as_mut() {
-        x.enabled = false;
-    }
-    if let Some(x) = u.measured.as_mut() {
-        x.enabled = false;
-    }
-    match u.turbulence.as_mut() {
-        Some(TurbulenceConfig::Horizontal { enabled, .. })
-        | Some(TurbulenceConfig::Slant { enabled, .. }) => *enabled = false,
-        None => {}
-    }
-    let t = Sensor::build(&u).unwrap();
+    let t = Sensor::build(&s.config().unblurred()).unwrap();
     assert!(t.otf().components().is_empty(), "{}", s.name);
     t
 }
@@ -679,12 +648,16 @@ fn restoration_table_never_loses_and_tracks_the_best_constant() {
                         c.psnr_restored, c.psnr_input
                     ));
                 }
-                // Issue 38 asks for 0.5 dB of the best constant NSR everywhere. With clipped
-                // sources (filled from the PSF's wings before filtering) the rule's error
-                // estimate still prefers too little regularisation: up to 2.3 dB short in
-                // six thermal rows (docs/way-back.md §2, issue 38 open). Those rows are held
+                // Issue 38 asks for 0.5 dB of the best constant NSR everywhere. MultiMIR's
+                // thermal rows (a clipped exhaust filled from the PSF's wings, 24 dead
+                // pixels replaced) still land 2.2–2.4 dB short even with the fill's
+                // variance counted as noise (docs/way-back.md §2, issue 38 open): held
                 // to what they reach today, so a regression still fails.
-                let allowed_db = if c.saturated > 0 { 2.5 } else { 0.5 };
+                let allowed_db = if c.preset == "multimir" && c.scene == "thermal" {
+                    2.5
+                } else {
+                    0.5
+                };
                 if c.psnr_restored < c.psnr_best_constant - allowed_db {
                     failures.push(format!(
                         "{id}: PSNR {:.2} vs best constant {:.2} (allowed {allowed_db} dB below)",
@@ -787,4 +760,59 @@ fn scene_run_restore_edge_mtf_defaults_never_blur_the_edge() {
     // Uncertainties are reported and small against the MTF50 itself.
     let s50 = a["mtf50_sigma_cy_per_px"].as_f64().unwrap();
     assert!(s50 > 0.0 && s50 < 0.1 * m_in, "{s50}");
+}
+
+/// `eoir run --unblurred` is the run with every transfer-function section of the sensor
+/// switched off by hand (`--set …enabled=false` on MultimIR's diffraction, footprint,
+/// aberration, motion and jitter): the same DN bit for bit, and report.json says
+/// `"unblurred": true` for both and `false` for the ordinary run.
+#[test]
+fn run_unblurred_is_every_transfer_function_switched_off() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let set = ["--set", "detector.rows=48", "--set", "detector.cols=48"];
+    let ok = |o: std::process::Output| {
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    ok(eoir()
+        .current_dir(d)
+        .args(["scene", "edge", "-o", "s.hdr", "--sensor", "multimir"])
+        .args(set)
+        .output()
+        .unwrap());
+    let off = [
+        "diffraction.enabled=false",
+        "detector.footprint_enabled=false",
+        "aberration.enabled=false",
+        "motion.enabled=false",
+        "jitter.enabled=false",
+    ];
+    let by_hand: Vec<String> = off
+        .iter()
+        .flat_map(|o| ["--set".to_string(), o.to_string()])
+        .collect();
+    for (out, extra) in [
+        ("u", vec!["--unblurred".to_string()]),
+        ("h", by_hand),
+        ("b", vec![]),
+    ] {
+        ok(eoir()
+            .current_dir(d)
+            .args(["run", "--sensor", "multimir", "--quiet", "s.hdr", "-o", out])
+            .args(set)
+            .args(extra)
+            .output()
+            .unwrap());
+    }
+    let report = |out: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(d.join(out).join("report.json")).unwrap())
+            .unwrap()
+    };
+    assert_eq!(report("u")["unblurred"], true);
+    assert_eq!(report("h")["unblurred"], true);
+    assert_eq!(report("b")["unblurred"], false);
+    assert_eq!(report("u")["optics"]["components"], serde_json::json!([]));
+    let dn = |out: &str| raster::read_tiff_u16(&d.join(out).join("dn.tiff")).unwrap();
+    assert_eq!(dn("u"), dn("h"));
+    assert_ne!(dn("u"), dn("b"));
 }
