@@ -509,12 +509,18 @@ impl FieldOptics {
         &self.frame
     }
 
-    /// The pupil PSF at padded-frame position (row, col) and wavelength `lambda_m` with
-    /// `samples` across the pupil (the same sampling for every point).
-    fn psf_at(&self, row: f64, col: f64, lambda_m: f64, samples: usize) -> Result<Array2<f64>> {
+    /// The pupil transfer function of the wavefront at padded-frame position (row, col)
+    /// (its own H and azimuth) at wavelength `lambda_m`, sampled by `sampling`.
+    fn transfer_at(
+        &self,
+        row: f64,
+        col: f64,
+        lambda_m: f64,
+        sampling: Sampling,
+    ) -> Result<PupilTransfer> {
         let (h, az) = self.frame.field_point(row, col);
         let (turning, fixed) = self.wavefront_at(h);
-        let t = PupilTransfer::compute_at_azimuth(
+        PupilTransfer::compute_at_azimuth(
             &self.pupil,
             &turning,
             &fixed,
@@ -522,12 +528,21 @@ impl FieldOptics {
             self.model.reference_wavelength_m(),
             lambda_m,
             self.diameter_m,
-            Sampling {
-                samples_across: samples,
-                padding: 2,
-            },
-        )?;
-        Ok(t.psf().clone())
+            sampling,
+        )
+    }
+
+    /// The pupil PSF at padded-frame position (row, col) and wavelength `lambda_m` with
+    /// `samples` across the pupil (the same sampling for every point).
+    fn psf_at(&self, row: f64, col: f64, lambda_m: f64, samples: usize) -> Result<Array2<f64>> {
+        let sampling = Sampling {
+            samples_across: samples,
+            padding: 2,
+        };
+        Ok(self
+            .transfer_at(row, col, lambda_m, sampling)?
+            .psf()
+            .clone())
     }
 
     /// The largest point-source error of a `g × g` zone grid against the exact PSF at the
@@ -922,7 +937,6 @@ pub fn direct_summation(
         samples_across: field.report.pupil_samples_across,
         padding: 2,
     };
-    let reference_m = field.model.reference_wavelength_m();
     let mut rest = Vec::new();
     for &b in &imager.weights.active_bands() {
         let planes = reader.read_planes(frame, &[b])?;
@@ -943,18 +957,7 @@ pub fn direct_summation(
                 continue;
             }
             let (row, col) = (r as f64, c as f64);
-            let (h, az) = field.frame.field_point(row, col);
-            let (turning, fixed) = field.wavefront_at(h);
-            let t = PupilTransfer::compute_at_azimuth(
-                &field.pupil,
-                &turning,
-                &fixed,
-                az,
-                reference_m,
-                lambda * 1e-6,
-                field.diameter_m,
-                sampling,
-            )?;
+            let t = field.transfer_at(row, col, lambda * 1e-6, sampling)?;
             let ex: Vec<Complex64> = (0..hc)
                 .map(|u| Complex64::from_polar(1.0, -TAU * u as f64 * col / nx as f64))
                 .collect();
