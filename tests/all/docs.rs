@@ -11,21 +11,12 @@
 //!   current code prints.
 
 use std::collections::BTreeSet;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::Command;
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
-
-/// Pages written on other branches at the same time as this test (issue 40's
-/// documentation round); links to them are allowed to dangle until they are merged.
-/// Empty this list once they are.
-const PENDING_PAGES: &[&str] = &[
-    "docs/way-back.md",
-    "docs/conformance.md",
-    "docs/characterize.md",
-];
 
 /// `README.md` and every `.md` under `docs/`.
 fn markdown_files() -> Vec<PathBuf> {
@@ -142,20 +133,7 @@ fn every_relative_link_in_the_docs_resolves() {
             };
             let rel = file.strip_prefix(root()).unwrap().display().to_string();
             if !resolved.exists() {
-                let from_root = resolved
-                    .canonicalize()
-                    .ok()
-                    .or_else(|| {
-                        normalise(&resolved)
-                            .strip_prefix(root())
-                            .ok()
-                            .map(Path::to_path_buf)
-                    })
-                    .map(|p| p.display().to_string())
-                    .unwrap_or_default();
-                if !PENDING_PAGES.contains(&from_root.as_str()) {
-                    broken.push(format!("{rel}: {target} (no such file)"));
-                }
+                broken.push(format!("{rel}: {target} (no such file)"));
                 continue;
             }
             if let Some(f) = fragment {
@@ -173,21 +151,6 @@ fn every_relative_link_in_the_docs_resolves() {
         "only {checked} links found: is the parser broken?"
     );
     assert!(broken.is_empty(), "broken links:\n{}", broken.join("\n"));
-}
-
-/// `a/b/../c` → `a/c` without touching the file system.
-fn normalise(p: &Path) -> PathBuf {
-    let mut out = PathBuf::new();
-    for c in p.components() {
-        match c {
-            std::path::Component::ParentDir => {
-                out.pop();
-            }
-            std::path::Component::CurDir => {}
-            other => out.push(other),
-        }
-    }
-    out
 }
 
 /// One `$ command` of a console block with the lines printed under it.
